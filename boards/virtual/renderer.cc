@@ -1,0 +1,456 @@
+#include "boards/virtual/renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <random>
+#include <set>
+#include <thread>
+#include <tuple>
+
+#include <opencv2/imgproc.hpp>
+
+namespace mirrorscan::virtual_cabinet {
+
+namespace {
+
+constexpr double kTraceEpsilon = 1e-3;  // mm; keeps secondary rays off their own surface
+constexpr double kMaxGradientMm = 10.0;  // laser-plane distance spanned by one pixel, capped
+
+// Deterministic per-frame random numbers (SplitMix64), so frames render in any order or
+// in parallel and a seed always gives the same images.
+class FrameRandom {
+ public:
+  explicit FrameRandom(uint64_t seed) : state_(seed) {}
+  uint64_t Next() {
+    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  }
+  float Uniform() { return static_cast<float>(Next() >> 40) * (1.0f / 16777216.0f); }
+  // Marsaglia's polar method: two standard normals per accepted pair.
+  float Normal() {
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    float x, y, r2;
+    do {
+      x = 2.0f * Uniform() - 1.0f;
+      y = 2.0f * Uniform() - 1.0f;
+      r2 = x * x + y * y;
+    } while (r2 >= 1.0f || r2 == 0.0f);
+    const float f = std::sqrt(-2.0f * std::log(r2) / r2);
+    spare_ = y * f;
+    has_spare_ = true;
+    return x * f;
+  }
+
+ private:
+  uint64_t state_;
+  float spare_ = 0.0f;
+  bool has_spare_ = false;
+};
+
+uint64_t MixSeed(uint64_t a, uint64_t b, uint64_t c) {
+  FrameRandom r(a * 0x632BE59BD9B4E019ull ^ (b + 0x9E3779B97F4A7C15ull) * 0xD6E8FEB86659FD93ull ^ c);
+  return r.Next();
+}
+
+// Mean of the sheet profile exp(-s²/2σ²) over a pixel whose plane distance runs
+// linearly from s - span/2 to s + span/2.
+double BoxedProfile(double s, double span, double sigma) {
+  span = std::abs(span);
+  if (span < 1e-3 * sigma) return std::exp(-0.5 * s * s / (sigma * sigma));
+  const double k = 1.0 / (std::numbers::sqrt2 * sigma);
+  return (std::erf((s + 0.5 * span) * k) - std::erf((s - 0.5 * span) * k)) *
+         (sigma * std::sqrt(std::numbers::pi / 2.0)) / span;
+}
+
+View ViewFromPath(const std::vector<int>& path) {
+  if (path.empty()) return View::kCenter;
+  if (path.size() == 1) return path[0] == 0 ? View::kLeft : View::kRight;
+  return path[0] == 0 ? View::kLeftRight : View::kRightLeft;
+}
+
+void ParallelRows(int rows, const std::function<void(int begin, int end)>& work) {
+  const int threads = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  const int chunk = (rows + threads - 1) / threads;
+  for (int t = 0; t < threads; ++t) {
+    const int begin = t * chunk, end = std::min(rows, begin + chunk);
+    if (begin < end) pool.emplace_back(work, begin, end);
+  }
+  for (auto& th : pool) th.join();
+}
+
+}  // namespace
+
+const char* ViewName(View view) {
+  switch (view) {
+    case View::kCenter: return "center";
+    case View::kLeft: return "left";
+    case View::kRight: return "right";
+    case View::kLeftRight: return "left-right";
+    case View::kRightLeft: return "right-left";
+    case View::kNone: break;
+  }
+  return "none";
+}
+
+std::vector<int> MirrorPath(View view) {
+  switch (view) {
+    case View::kLeft: return {0};
+    case View::kRight: return {1};
+    case View::kLeftRight: return {0, 1};
+    case View::kRightLeft: return {1, 0};
+    default: return {};
+  }
+}
+
+struct Renderer::CameraCache {
+  struct LaserPixel {
+    double w;     // laser normal · surface point (mm)
+    float span;   // change of w across the pixel along v, capped
+    float gain;   // DN at the sheet's centre, before speckle
+    uint32_t index;
+  };
+  int width = 0, height = 0;
+  std::vector<View> views;
+  cv::Mat base;                    // ambient image, blurred, CV_32F
+  std::vector<LaserPixel> lit;     // pixels any laser can reach, sorted by w
+  double max_span = 0.0;
+};
+
+Renderer::Renderer(const Scene& scene) : scene_(scene) {
+  auto add = [&](const TriangleMesh& mesh, enum Material material) {
+    tracer_.AddMesh(mesh);
+    materials_.push_back(material);
+  };
+  // Floor: a large quad at z = 0 facing up.
+  TriangleMesh floor;
+  floor.vertices = {{-5000, -5000, 0}, {5000, -5000, 0}, {5000, 5000, 0}, {-5000, 5000, 0}};
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}};
+  add(floor, Material::kFloor);
+  for (const auto& panel : scene_.panels) add(panel.Mesh(), Material::kPanel);
+  first_mirror_geometry_ = static_cast<int>(materials_.size());
+  for (const auto& mirror : scene_.mirrors) add(mirror.Mesh(), Material::kMirror);
+  if (!scene_.subject.mesh.empty()) add(scene_.subject.mesh, Material::kSubject);
+  if (scene_.target) add(scene_.target->Mesh(), Material::kTarget);
+  tracer_.Commit();
+  caches_.resize(scene_.cameras.size());
+}
+
+Renderer::~Renderer() = default;
+
+SurfaceSample Renderer::TracePixel(int camera, const Eigen::Vector2d& pixel) const {
+  SurfaceSample sample;
+  auto ray = scene_.cameras.at(camera).camera.RayThroughPixel(pixel);
+  if (!ray) return sample;
+  std::vector<int> path;
+  for (int bounce = 0; bounce <= 2; ++bounce) {
+    const auto hit = tracer_.Intersect(*ray, kTraceEpsilon, std::numeric_limits<double>::infinity());
+    if (!hit) return sample;
+    const enum Material material = materials_[hit->geometry];
+    if (material == Material::kMirror) {
+      if (bounce == 2) return sample;
+      const int index = hit->geometry - first_mirror_geometry_;
+      const Mirror& mirror = scene_.mirrors[index];
+      const auto reflected = mirror.Reflect(*ray);
+      if (!reflected) return sample;  // grazed the rim in float but not in double
+      sample.path_length += (reflected->origin - ray->origin).norm();
+      sample.transmission *= mirror.reflectivity;
+      path.push_back(index);
+      ray = reflected;
+      continue;
+    }
+    sample.view = ViewFromPath(path);
+    sample.material = material;
+    sample.hit = *hit;
+    if (sample.hit.normal.dot(ray->direction) > 0) sample.hit.normal = -sample.hit.normal;
+    sample.last_ray = *ray;
+    sample.path_length += hit->t;
+    return sample;
+  }
+  return sample;
+}
+
+double Renderer::LaserIrradiance(const Eigen::Vector3d& point, const Eigen::Vector3d& normal) const {
+  const Lasers& lasers = scene_.lasers;
+  // The emitter sits on the slide in the laser plane through the point.
+  const Eigen::Vector3d& n = lasers.normal;
+  const double emitter_z =
+      (n.dot(point) - n.x() * lasers.emitter_xy.x() - n.y() * lasers.emitter_xy.y()) / n.z();
+  const Eigen::Vector3d emitter = lasers.EmitterAt(emitter_z);
+  double total = 0.0;
+
+  auto contribution = [&](const Eigen::Vector3d& toward, double length) {
+    // A line laser spreads its power along the line: irradiance falls as 1/r.
+    return std::max(0.0, normal.dot(toward)) * 1000.0 / length;
+  };
+  {
+    const Eigen::Vector3d d = emitter - point;
+    const double r = d.norm();
+    const Eigen::Vector3d dir = d / r;
+    if (normal.dot(dir) > 0 && !tracer_.Occluded({point, dir}, 0.05, r - 0.05)) {
+      total += contribution(dir, r);
+    }
+  }
+  for (const Mirror& mirror : scene_.mirrors) {
+    const Eigen::Vector3d virtual_emitter = mirror.plane.ReflectPoint(emitter);
+    const Eigen::Vector3d d = virtual_emitter - point;
+    const double r = d.norm();
+    const Eigen::Vector3d dir = d / r;
+    if (normal.dot(dir) <= 0) continue;
+    const Ray3d to_mirror{point, dir};
+    const auto t = IntersectRayPlane(to_mirror, mirror.plane, 0.05);
+    if (!t || *t >= r) continue;
+    const Eigen::Vector3d on_mirror = to_mirror.At(*t);
+    if (!mirror.Contains(on_mirror)) continue;
+    if (tracer_.Occluded(to_mirror, 0.05, *t - 0.05)) continue;
+    const Eigen::Vector3d back = emitter - on_mirror;
+    const double back_length = back.norm();
+    if (tracer_.Occluded({on_mirror, back / back_length}, 0.05, back_length - 0.05)) continue;
+    total += mirror.reflectivity * contribution(dir, r);
+  }
+  return total;
+}
+
+double Renderer::Albedo(const RayHit& hit, double footprint_mm) const {
+  switch (materials_[hit.geometry]) {
+    case Material::kFloor: return scene_.floor_albedo;
+    case Material::kPanel: return scene_.panels[0].albedo;
+    case Material::kSubject: return scene_.subject_albedo;
+    case Material::kTarget: {
+      const auto a = scene_.target->AlbedoArea(hit.point, footprint_mm);
+      return a ? *a : 0.85;
+    }
+    default: return 0.0;
+  }
+}
+
+const Renderer::CameraCache& Renderer::Cache(int camera) const {
+  std::lock_guard<std::mutex> lock(cache_mutex_);
+  if (!caches_.at(camera)) BuildCache(camera);
+  return *caches_[camera];
+}
+
+void Renderer::BuildCache(int camera) const {
+  auto cache = std::make_unique<CameraCache>();
+  const SceneCamera& cam = scene_.cameras[camera];
+  const int width = cam.camera.intrinsics.width, height = cam.camera.intrinsics.height;
+  cache->width = width;
+  cache->height = height;
+  cache->views.assign(static_cast<size_t>(width) * height, View::kNone);
+  cv::Mat base(height, width, CV_32F, cv::Scalar(0));
+  std::vector<std::vector<CameraCache::LaserPixel>> lit_rows(height);
+  const Sensor& sensor = scene_.sensor;
+  const Eigen::Vector3d& laser_normal = scene_.lasers.normal;
+
+  ParallelRows(height, [&](int row_begin, int row_end) {
+    for (int v = row_begin; v < row_end; ++v) {
+      for (int u = 0; u < width; ++u) {
+        const SurfaceSample s = TracePixel(camera, {u, v});
+        const size_t index = static_cast<size_t>(v) * width + u;
+        cache->views[index] = s.view;
+        if (s.view == View::kNone) continue;
+        // Ray differentials: where the rays through the neighbouring half-pixels meet the
+        // tangent plane, following the same mirrors.
+        const Plane tangent = Plane::FromPointNormal(s.hit.point, s.hit.normal);
+        auto on_tangent = [&](const Eigen::Vector2d& pixel) -> std::optional<Eigen::Vector3d> {
+          auto ray = cam.camera.RayThroughPixel(pixel);
+          if (!ray) return std::nullopt;
+          for (int m : MirrorPath(s.view)) {
+            const Plane& plane = scene_.mirrors[m].plane;
+            const auto t = IntersectRayPlane(*ray, plane, -1e9);
+            if (!t) return std::nullopt;
+            ray = Ray3d{ray->At(*t), plane.ReflectDirection(ray->direction)};
+          }
+          const auto t = IntersectRayPlane(*ray, tangent, -1e9);
+          if (!t) return std::nullopt;
+          return ray->At(*t);
+        };
+        const auto up = on_tangent({u, v - 0.5}), down = on_tangent({u, v + 0.5});
+        const auto left = on_tangent({u - 0.5, v}), right = on_tangent({u + 0.5, v});
+        double span = kMaxGradientMm, footprint = 1.0;
+        if (up && down && left && right) {
+          span = std::min(kMaxGradientMm, std::abs(laser_normal.dot(*down - *up)));
+          footprint = std::sqrt(std::max(1e-6, (*down - *up).cross(*right - *left).norm()));
+        }
+        const double albedo = Albedo(s.hit, footprint);
+        const double facing = std::max(0.0, -s.hit.normal.dot(s.last_ray.direction));
+        base.at<float>(v, u) =
+            static_cast<float>(sensor.ambient_dn * albedo * s.transmission * (0.35 + 0.65 * facing));
+        const double irradiance = LaserIrradiance(s.hit.point, s.hit.normal);
+        if (irradiance <= 0.0) continue;
+        const double gain = sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * irradiance;
+        if (gain < 1e-3) continue;
+        lit_rows[v].push_back({laser_normal.dot(s.hit.point), static_cast<float>(span),
+                               static_cast<float>(gain), static_cast<uint32_t>(index)});
+      }
+    }
+  });
+  if (sensor.blur_px > 0) cv::GaussianBlur(base, base, cv::Size(0, 0), sensor.blur_px, sensor.blur_px, cv::BORDER_REPLICATE);
+  cache->base = base;
+  for (auto& row : lit_rows) {
+    for (const auto& p : row) cache->max_span = std::max<double>(cache->max_span, p.span);
+    cache->lit.insert(cache->lit.end(), row.begin(), row.end());
+  }
+  std::sort(cache->lit.begin(), cache->lit.end(),
+            [](const auto& a, const auto& b) { return a.w < b.w; });
+  caches_[camera] = std::move(cache);
+}
+
+GrayImage Renderer::RenderFrame(int camera, double t, uint64_t frame_index, bool lasers_on) const {
+  const CameraCache& cache = Cache(camera);
+  const Sensor& sensor = scene_.sensor;
+  const Lasers& lasers = scene_.lasers;
+  FrameRandom random(MixSeed(scene_.seed, static_cast<uint64_t>(camera), frame_index));
+
+  cv::Mat laser(cache.height, cache.width, CV_32F, cv::Scalar(0));
+  int row_min = cache.height, row_max = -1;
+  if (lasers_on) {
+    const double sigma = lasers.sheet_sigma_mm;
+    const double reach = 6.0 * sigma + 0.5 * cache.max_span;
+    // Speckle: a gamma-distributed factor (mean 1, contrast C) per column and laser,
+    // so it varies along the stripe but not across it.
+    const double contrast = sensor.noise ? sensor.speckle_contrast : 0.0;
+    std::vector<float> speckle(static_cast<size_t>(cache.width) * lasers.count, 1.0f);
+    if (contrast > 0) {
+      std::mt19937_64 engine(random.Next());
+      const double shape = 1.0 / (contrast * contrast);
+      std::gamma_distribution<double> gamma(shape, 1.0 / shape);
+      for (auto& s : speckle) s = static_cast<float>(gamma(engine));
+    }
+    for (int k = 0; k < lasers.count; ++k) {
+      const double h = lasers.HeightAt(k, t);
+      auto it = std::lower_bound(cache.lit.begin(), cache.lit.end(), h - reach,
+                                 [](const auto& p, double w) { return p.w < w; });
+      for (; it != cache.lit.end() && it->w <= h + reach; ++it) {
+        const double s = it->w - h;
+        if (std::abs(s) > 6.0 * sigma + 0.5 * it->span) continue;
+        const int u = static_cast<int>(it->index % cache.width);
+        const int v = static_cast<int>(it->index / cache.width);
+        laser.at<float>(v, u) += static_cast<float>(it->gain * BoxedProfile(s, it->span, sigma)) *
+                                 speckle[static_cast<size_t>(k) * cache.width + u];
+        row_min = std::min(row_min, v);
+        row_max = std::max(row_max, v);
+      }
+    }
+    if (row_max >= 0 && sensor.blur_px > 0) {
+      const int margin = static_cast<int>(std::ceil(4 * sensor.blur_px)) + 1;
+      const int r0 = std::max(0, row_min - margin), r1 = std::min(cache.height, row_max + margin + 1);
+      cv::Mat band = laser.rowRange(r0, r1);
+      cv::GaussianBlur(band.clone(), band, cv::Size(0, 0), sensor.blur_px, sensor.blur_px,
+                       cv::BORDER_CONSTANT);
+    }
+  }
+
+  GrayImage image;
+  image.width = cache.width;
+  image.height = cache.height;
+  image.pixels.resize(static_cast<size_t>(cache.width) * cache.height);
+  const float read_variance = static_cast<float>(sensor.read_noise_dn * sensor.read_noise_dn);
+  const float inverse_gain = static_cast<float>(1.0 / sensor.electrons_per_dn);
+  for (int v = 0; v < cache.height; ++v) {
+    const float* base_row = cache.base.ptr<float>(v);
+    const float* laser_row = laser.ptr<float>(v);
+    uint8_t* out = &image.pixels[static_cast<size_t>(v) * cache.width];
+    for (int u = 0; u < cache.width; ++u) {
+      float value = base_row[u] + laser_row[u];
+      if (sensor.noise) {
+        value += std::sqrt(value * inverse_gain + read_variance) * random.Normal();
+      }
+      out[u] = static_cast<uint8_t>(std::clamp(std::lround(value), 0l, 255l));
+    }
+  }
+  return image;
+}
+
+std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
+  const Camera& cam = scene_.cameras.at(camera).camera;
+  const Eigen::Vector3d center = cam.CenterInWorld();
+  std::vector<TruthPeak> peaks;
+  std::set<std::tuple<int, int, int, long long>> seen;
+  const View views[] = {View::kCenter, View::kLeft, View::kRight, View::kLeftRight, View::kRightLeft};
+
+  for (int k = 0; k < scene_.lasers.count; ++k) {
+    const Plane plane = scene_.lasers.PlaneAt(k, t);
+    for (size_t g = 0; g < materials_.size(); ++g) {
+      const enum Material material = materials_[g];
+      if (material != Material::kSubject && material != Material::kTarget && material != Material::kPanel) continue;
+      const TriangleMesh& mesh = tracer_.mesh(static_cast<int>(g));
+      for (size_t tri = 0; tri < mesh.triangles.size(); ++tri) {
+        const Eigen::Vector3i& ids = mesh.triangles[tri];
+        const Eigen::Vector3d p[3] = {mesh.vertices[ids[0]], mesh.vertices[ids[1]], mesh.vertices[ids[2]]};
+        double d[3];
+        for (int i = 0; i < 3; ++i) d[i] = plane.SignedDistance(p[i]);
+        Eigen::Vector3d ends[2];
+        int found = 0;
+        for (int i = 0; i < 3 && found < 2; ++i) {
+          const int j = (i + 1) % 3;
+          if ((d[i] >= 0) != (d[j] >= 0)) ends[found++] = p[i] + (d[i] / (d[i] - d[j])) * (p[j] - p[i]);
+        }
+        if (found != 2) continue;
+        const Eigen::Vector3d normal = mesh.TriangleNormal(static_cast<int>(tri));
+        for (View view : views) {
+          const std::vector<int> path = MirrorPath(view);
+          // The camera sees P at M1(M2(P)); equivalently P from the camera centre M2(M1(C)).
+          Eigen::Vector3d virtual_center = center;
+          for (int m : path) virtual_center = scene_.mirrors[m].plane.ReflectPoint(virtual_center);
+          const Eigen::Vector3d mid = 0.5 * (ends[0] + ends[1]);
+          // Panels and target quads are seen from either side; closed meshes only from outside.
+          if (material == Material::kSubject && normal.dot(virtual_center - mid) <= 0) continue;
+          auto project = [&](const Eigen::Vector3d& point) {
+            Eigen::Vector3d q = point;
+            for (auto it = path.rbegin(); it != path.rend(); ++it) q = scene_.mirrors[*it].plane.ReflectPoint(q);
+            return cam.ProjectWorld(q);
+          };
+          const auto pa = project(ends[0]), pb = project(ends[1]);
+          if (!pa || !pb) continue;
+          const double u_lo = std::min(pa->x(), pb->x()), u_hi = std::max(pa->x(), pb->x());
+          for (int u = static_cast<int>(std::ceil(u_lo)); u <= static_cast<int>(std::floor(u_hi)); ++u) {
+            if (u < 0 || u >= cam.intrinsics.width) continue;
+            // Bisection on the segment for the exact column (the image of a straight
+            // segment is curved by lens distortion).
+            double lo = 0.0, hi = 1.0;
+            const bool rising = pb->x() > pa->x();
+            Eigen::Vector3d point = ends[0];
+            std::optional<Eigen::Vector2d> pixel;
+            for (int iteration = 0; iteration < 60; ++iteration) {
+              const double mid_t = 0.5 * (lo + hi);
+              point = ends[0] + mid_t * (ends[1] - ends[0]);
+              pixel = project(point);
+              if (!pixel) break;
+              if ((pixel->x() < u) == rising) lo = mid_t; else hi = mid_t;
+            }
+            if (!pixel || !cam.intrinsics.InImage(*pixel)) continue;
+            const SurfaceSample s = TracePixel(camera, {u, pixel->y()});
+            if (s.view != view || (s.hit.point - point).norm() > 0.05) continue;
+            const double irradiance = LaserIrradiance(point, s.hit.normal);
+            if (irradiance <= 0) continue;
+            const auto key = std::make_tuple(k, static_cast<int>(view), u, std::llround(pixel->y() * 1000));
+            if (!seen.insert(key).second) continue;
+            TruthPeak peak;
+            peak.camera = camera;
+            peak.laser = k;
+            peak.view = view;
+            peak.u = u;
+            peak.v = pixel->y();
+            peak.point_in_world = point;
+            peak.peak_dn = scene_.sensor.laser_dn * scene_.lasers.power * Albedo(s.hit, 1.0) *
+                           s.transmission * irradiance;
+            peaks.push_back(peak);
+          }
+        }
+      }
+    }
+  }
+  std::sort(peaks.begin(), peaks.end(), [](const TruthPeak& a, const TruthPeak& b) {
+    return std::tie(a.u, a.v) < std::tie(b.u, b.v);
+  });
+  return peaks;
+}
+
+}  // namespace mirrorscan::virtual_cabinet

@@ -1,0 +1,319 @@
+#include "boards/virtual/scene.h"
+
+#include <cmath>
+#include <numbers>
+
+#include "common/config/json_reader.h"
+
+namespace mirrorscan::virtual_cabinet {
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+Eigen::Vector3d Vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
+
+nlohmann::json DefaultCameras() {
+  // Modelled on the paper's Fig. 1: an upper and a lower camera in front of the subject.
+  // Both look down so that the laser planes they triangulate are never seen edge-on:
+  // the upper camera serves heights above ~950 mm, the lower one those below.
+  return nlohmann::json::array(
+      {{{"name", "upper"}, {"position_mm", {0, -2300, 2250}}, {"look_at_mm", {0, 300, 1350}}},
+       {{"name", "lower"}, {"position_mm", {0, -2300, 1450}}, {"look_at_mm", {0, 300, 450}}}});
+}
+
+SceneCamera ParseCamera(const JsonReader& r) {
+  r.AllowOnly({"name", "position_mm", "look_at_mm", "width", "height", "f_px", "fx", "fy", "cx",
+               "cy", "distortion", "fps"});
+  SceneCamera c;
+  c.name = r.String("name");
+  if (c.name.empty()) r.Fail("name", "must not be empty");
+  CameraIntrinsics& k = c.camera.intrinsics;
+  k.width = r.Integer("width", 1024, 16, 16384);
+  k.height = r.Integer("height", 768, 16, 16384);
+  const double f = r.Number("f_px", 1400.0, 1.0, 1e6);
+  k.fx = r.Number("fx", f, 1.0, 1e6);
+  k.fy = r.Number("fy", f, 1.0, 1e6);
+  k.cx = r.Number("cx", (k.width - 1) / 2.0, -k.width, 2.0 * k.width);
+  k.cy = r.Number("cy", (k.height - 1) / 2.0, -k.height, 2.0 * k.height);
+  const auto d = r.Numbers("distortion", 5, std::vector<double>{-0.08, 0.05, 3e-4, -2e-4, 0.0});
+  for (double x : d) {
+    if (std::abs(x) > 10) r.Fail("distortion", "coefficients must be within ±10");
+  }
+  k.k1 = d[0], k.k2 = d[1], k.p1 = d[2], k.p2 = d[3], k.k3 = d[4];
+  c.fps = r.Number("fps", 30.0, 0.1, 1000.0);
+  const Eigen::Vector3d position = Vec3(r.Numbers("position_mm", 3));
+  const Eigen::Vector3d look_at = Vec3(r.Numbers("look_at_mm", 3));
+  if ((look_at - position).norm() < 1.0) r.Fail("look_at_mm", "must differ from position_mm");
+  const Eigen::Vector3d dir = (look_at - position).normalized();
+  if (std::abs(dir.z()) > 0.999) r.Fail("look_at_mm", "camera must not look straight up or down");
+  c.camera.cam_from_world = LookAt(position, look_at);
+  // Corners of the image must unproject, or the distortion model folds over.
+  for (double u : {-0.5, k.width - 0.5}) {
+    for (double v : {-0.5, k.height - 0.5}) {
+      if (!k.Unproject({u, v})) r.Fail("distortion", "distortion does not invert at the image corners");
+    }
+  }
+  return c;
+}
+
+}  // namespace
+
+Eigen::Vector2d Mirror::Local(const Eigen::Vector3d& point) const {
+  const Eigen::Vector3d d = point - origin;
+  return {d.dot(along), d.dot(up)};
+}
+
+bool Mirror::Contains(const Eigen::Vector3d& point_in_plane) const {
+  const Eigen::Vector2d l = Local(point_in_plane);
+  return l.x() >= 0.0 && l.x() <= width && l.y() >= 0.0 && l.y() <= height;
+}
+
+double Mirror::Displacement(const Eigen::Vector2d& local) const {
+  if (bump_mm == 0.0) return 0.0;
+  const double a = 2.0 * local.x() / width - 1.0, b = 2.0 * local.y() / height - 1.0;
+  return bump_mm * (1.0 - a * a) * (1.0 - b * b);
+}
+
+Eigen::Vector3d Mirror::SurfaceNormal(const Eigen::Vector2d& local) const {
+  if (bump_mm == 0.0) return plane.normal;
+  const double a = 2.0 * local.x() / width - 1.0, b = 2.0 * local.y() / height - 1.0;
+  const double d_da = bump_mm * (-2.0 * a) * (2.0 / width) * (1.0 - b * b);
+  const double d_db = bump_mm * (1.0 - a * a) * (-2.0 * b) * (2.0 / height);
+  return (plane.normal - d_da * along - d_db * up).normalized();
+}
+
+std::optional<Ray3d> Mirror::Reflect(const Ray3d& ray) const {
+  const auto t = IntersectRayPlane(ray, plane, 1e-6);
+  if (!t) return std::nullopt;
+  Eigen::Vector3d hit = ray.At(*t);
+  if (!Contains(hit)) return std::nullopt;
+  Eigen::Vector2d local = Local(hit);
+  if (bump_mm != 0.0) {
+    // Meet the displaced surface: one refinement is far below a micrometre for mm bumps.
+    const Plane shifted{plane.normal, plane.offset - Displacement(local)};
+    if (const auto t2 = IntersectRayPlane(ray, shifted, 1e-6)) hit = ray.At(*t2);
+    local = Local(hit);
+  }
+  const Eigen::Vector3d n = SurfaceNormal(local);
+  return Ray3d{hit, (ray.direction - 2.0 * n.dot(ray.direction) * n).normalized()};
+}
+
+std::array<Eigen::Vector3d, 4> Mirror::Corners() const {
+  return {origin, origin + width * along, origin + width * along + height * up,
+          origin + height * up};
+}
+
+namespace {
+
+TriangleMesh Quad(const Eigen::Vector3d& origin, const Eigen::Vector3d& along,
+                  const Eigen::Vector3d& up, double width, double height,
+                  const Eigen::Vector3d& front_normal) {
+  TriangleMesh mesh;
+  mesh.vertices = {origin, origin + width * along, origin + width * along + height * up,
+                   origin + height * up};
+  // Wind counter-clockwise as seen from the front.
+  if (along.cross(up).dot(front_normal) > 0) {
+    mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  } else {
+    mesh.triangles = {{0, 2, 1}, {0, 3, 2}};
+  }
+  return mesh;
+}
+
+}  // namespace
+
+TriangleMesh Mirror::Mesh() const { return Quad(origin, along, up, width, height, plane.normal); }
+
+TriangleMesh Panel::Mesh() const { return Quad(origin, along, up, width, height, plane.normal); }
+
+Scene Scene::Load(const std::filesystem::path& file) {
+  const nlohmann::json json = JsonReader::ParseFile(file);
+  return Parse(json, file.string(), file.parent_path());
+}
+
+Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
+                   const std::filesystem::path& base_dir) {
+  const JsonReader root(json, file_name);
+  root.AllowOnly({"cameras", "mirrors", "panels", "floor", "lasers", "sensor", "subject",
+                  "target", "frames", "seed"});
+  Scene scene;
+  scene.source = json;
+
+  // Cameras.
+  nlohmann::json cameras_json = DefaultCameras();
+  if (root.Has("cameras")) cameras_json = json["cameras"];
+  const nlohmann::json wrapper = {{"cameras", cameras_json}};
+  const JsonReader cameras_reader(root.Has("cameras") ? json : wrapper, file_name);
+  const auto camera_readers = cameras_reader.Objects("cameras");
+  if (camera_readers.empty() || camera_readers.size() > 2) {
+    root.Fail("cameras", "expected one or two cameras");
+  }
+  for (const auto& r : camera_readers) scene.cameras.push_back(ParseCamera(r));
+  if (scene.cameras.size() == 2 && scene.cameras[0].name == scene.cameras[1].name) {
+    root.Fail("cameras", "camera names must differ");
+  }
+  if (scene.cameras.size() == 2 && scene.cameras[0].fps != scene.cameras[1].fps) {
+    root.Fail("cameras", "both cameras must run at the same fps");
+  }
+
+  // Mirrors, 120° apart by default, meeting at a vertical corner line behind the subject.
+  const nlohmann::json empty = nlohmann::json::object();
+  const JsonReader mr(json.contains("mirrors") ? json["mirrors"] : empty, file_name, "mirrors");
+  mr.AllowOnly({"width_mm", "height_mm", "bottom_mm", "angle_deg", "corner_y_mm", "reflectivity",
+                "left_bump_mm", "right_bump_mm"});
+  const double width = mr.Number("width_mm", 620.0, 50.0, 5000.0);
+  const double height = mr.Number("height_mm", 1700.0, 50.0, 5000.0);
+  const double bottom = mr.Number("bottom_mm", 100.0, 0.0, 3000.0);
+  const double angle = mr.Number("angle_deg", 120.0, 60.0, 179.0) * kDeg;
+  const double corner_y = mr.Number("corner_y_mm", 600.0, 100.0, 5000.0);
+  const double reflectivity = mr.Number("reflectivity", 0.9, 0.0, 1.0);
+  const double phi = (std::numbers::pi - angle) / 2.0;  // each mirror's turn from the x axis
+  const Eigen::Vector3d corner(0.0, corner_y, bottom);
+  for (int side = 0; side < 2; ++side) {
+    const double sign = side == 0 ? -1.0 : 1.0;
+    Mirror& m = scene.mirrors[side];
+    m.name = side == 0 ? "left" : "right";
+    m.origin = corner;
+    m.along = Eigen::Vector3d(sign * std::cos(phi), -std::sin(phi), 0.0);
+    m.up = Eigen::Vector3d::UnitZ();
+    m.plane = Plane::FromPointNormal(corner, Eigen::Vector3d(-sign * std::sin(phi), -std::cos(phi), 0.0));
+    m.width = width;
+    m.height = height;
+    m.reflectivity = reflectivity;
+    m.bump_mm = mr.Number(side == 0 ? "left_bump_mm" : "right_bump_mm", 0.0, -20.0, 20.0);
+  }
+
+  const JsonReader pr(json.contains("panels") ? json["panels"] : empty, file_name, "panels");
+  pr.AllowOnly({"offset_mm", "margin_mm", "albedo"});
+  const double offset = pr.Number("offset_mm", 6.0, 0.0, 200.0);
+  const double margin = pr.Number("margin_mm", 120.0, 10.0, 2000.0);
+  const double panel_albedo = pr.Number("albedo", 0.8, 0.0, 1.0);
+  for (int side = 0; side < 2; ++side) {
+    const Mirror& m = scene.mirrors[side];
+    Panel& p = scene.panels[side];
+    p.name = m.name;
+    p.offset_mm = offset;
+    p.plane = Plane{m.plane.normal, m.plane.offset + offset};  // `offset` further from the subject
+    p.along = m.along;
+    p.up = m.up;
+    p.origin = m.origin - offset * m.plane.normal - Eigen::Vector3d(0, 0, bottom);
+    p.width = width + margin;
+    p.height = bottom + height + margin;
+    p.albedo = panel_albedo;
+  }
+
+  const JsonReader fr(json.contains("floor") ? json["floor"] : empty, file_name, "floor");
+  fr.AllowOnly({"albedo"});
+  scene.floor_albedo = fr.Number("albedo", 0.25, 0.0, 1.0);
+
+  const JsonReader lr(json.contains("lasers") ? json["lasers"] : empty, file_name, "lasers");
+  lr.AllowOnly({"count", "spacing_mm", "start_mm", "speed_mm_s", "sheet_sigma_mm", "tilt_deg",
+                "emitter_mm", "power"});
+  Lasers& lasers = scene.lasers;
+  lasers.count = lr.Integer("count", 3, 1, 3);
+  lasers.spacing_mm = lr.Number("spacing_mm", 200.0, 20.0, 2000.0);
+  lasers.start_mm = lr.Number("start_mm", -50.0, -3000.0, 3000.0);
+  lasers.speed_mm_s = lr.Number("speed_mm_s", 150.0, 1.0, 5000.0);
+  lasers.sheet_sigma_mm = lr.Number("sheet_sigma_mm", 1.0, 0.05, 20.0);
+  const auto tilt = lr.Numbers("tilt_deg", 2, std::vector<double>{0.0, 0.0});
+  if (std::abs(tilt[0]) > 10 || std::abs(tilt[1]) > 10) lr.Fail("tilt_deg", "must be within ±10°");
+  lasers.normal = (Eigen::AngleAxisd(tilt[0] * kDeg, Eigen::Vector3d::UnitX()) *
+                   Eigen::AngleAxisd(tilt[1] * kDeg, Eigen::Vector3d::UnitY()) *
+                   Eigen::Vector3d::UnitZ())
+                      .normalized();
+  const auto emitter = lr.Numbers("emitter_mm", 2, std::vector<double>{0.0, -900.0});
+  lasers.emitter_xy = {emitter[0], emitter[1]};
+  lasers.power = lr.Number("power", 1.0, 0.0, 100.0);
+
+  const JsonReader sr(json.contains("sensor") ? json["sensor"] : empty, file_name, "sensor");
+  sr.AllowOnly({"ambient_dn", "laser_dn", "read_noise_dn", "electrons_per_dn", "speckle_contrast",
+                "blur_px", "noise"});
+  Sensor& sensor = scene.sensor;
+  sensor.ambient_dn = sr.Number("ambient_dn", 25.0, 0.0, 255.0);
+  sensor.laser_dn = sr.Number("laser_dn", 220.0, 0.0, 1e5);
+  sensor.read_noise_dn = sr.Number("read_noise_dn", 2.0, 0.0, 100.0);
+  sensor.electrons_per_dn = sr.Number("electrons_per_dn", 40.0, 0.01, 1e6);
+  sensor.speckle_contrast = sr.Number("speckle_contrast", 0.2, 0.0, 1.0);
+  sensor.blur_px = sr.Number("blur_px", 0.7, 0.0, 10.0);
+  sensor.noise = sr.Bool("noise", true);
+
+  // "albedo" is the renderer's business; the rest describes the subject's shape.
+  nlohmann::json subject_json = {{"type", "mannequin"}};
+  if (json.contains("subject")) subject_json = json["subject"];
+  if (subject_json.is_object() && subject_json.contains("albedo")) {
+    scene.subject_albedo = JsonReader(subject_json, file_name, "subject").Number("albedo", 0.6, 0.0, 1.0);
+    subject_json.erase("albedo");
+  }
+  scene.subject = ParseSubject(JsonReader(subject_json, file_name, "subject"), base_dir);
+
+  if (json.contains("target") && !json["target"].is_null()) {
+    scene.target.emplace(TargetConfig::Parse(JsonReader(json["target"], file_name, "target")));
+  }
+  scene.frames = root.Integer("frames", 300, 1, 100000);
+  const double seed = root.Number("seed", 1.0, 0.0, 9.0e15);
+  if (seed != std::floor(seed)) root.Fail("seed", "expected a whole number");
+  scene.seed = static_cast<uint64_t>(seed);
+  return scene;
+}
+
+nlohmann::json Scene::TrueCalibration() const {
+  auto vec = [](const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
+  nlohmann::json cameras_json = nlohmann::json::array();
+  for (const auto& c : cameras) {
+    const CameraIntrinsics& k = c.camera.intrinsics;
+    const Eigen::Matrix3d r = c.camera.cam_from_world.RotationMatrix();
+    nlohmann::json views = nlohmann::json::array();
+    views.push_back({{"name", "center"}, {"mirror", nullptr}});
+    for (const auto& m : mirrors) {
+      // The mirror's outline in the image: everything inside is seen through it.
+      nlohmann::json outline = nlohmann::json::array();
+      const auto corners = m.Corners();
+      for (int edge = 0; edge < 4; ++edge) {
+        for (int i = 0; i < 16; ++i) {
+          const Eigen::Vector3d p = corners[edge] + (corners[(edge + 1) % 4] - corners[edge]) * (i / 16.0);
+          if (const auto px = c.camera.ProjectWorld(p)) outline.push_back({px->x(), px->y()});
+        }
+      }
+      views.push_back({{"name", m.name}, {"mirror", m.name}, {"outline_px", outline}});
+    }
+    cameras_json.push_back(
+        {{"name", c.name},
+         {"width", k.width},
+         {"height", k.height},
+         {"fps", c.fps},
+         {"K", {{k.fx, 0.0, k.cx}, {0.0, k.fy, k.cy}, {0.0, 0.0, 1.0}}},
+         {"distortion", {k.k1, k.k2, k.p1, k.p2, k.k3}},
+         {"cam_from_world",
+          {{"rotation", {{r(0, 0), r(0, 1), r(0, 2)}, {r(1, 0), r(1, 1), r(1, 2)}, {r(2, 0), r(2, 1), r(2, 2)}}},
+           {"translation_mm", vec(c.camera.cam_from_world.translation)}}},
+         {"views", views}});
+  }
+  nlohmann::json mirrors_json = nlohmann::json::array();
+  for (int i = 0; i < 2; ++i) {
+    const Mirror& m = mirrors[i];
+    nlohmann::json corners = nlohmann::json::array();
+    for (const auto& c : m.Corners()) corners.push_back(vec(c));
+    mirrors_json.push_back({{"name", m.name},
+                            {"normal", vec(m.plane.normal)},
+                            {"offset_mm", m.plane.offset},
+                            {"corners_mm", corners},
+                            {"panel_offset_mm", panels[i].offset_mm}});
+  }
+  return {{"schema", "mirrorscan.calibration"},
+          {"version", 1},
+          {"source", "virtual cabinet ground truth"},
+          {"target_id", target ? "virtual-3panel-aruco48" : ""},
+          {"cameras", cameras_json},
+          {"mirrors", mirrors_json},
+          {"lasers",
+           {{"count", lasers.count},
+            {"spacing_mm", lasers.spacing_mm},
+            {"normal", vec(lasers.normal)},
+            {"height_at_t0_mm", lasers.start_mm},
+            {"speed_mm_s", lasers.speed_mm_s},
+            {"note", "laser k at time t: normal · x = height_at_t0 + speed·t + k·spacing"}}},
+          {"residuals", {{"reprojection_rms_px", 0.0}}}};
+}
+
+}  // namespace mirrorscan::virtual_cabinet

@@ -1,0 +1,120 @@
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "boards/virtual/mesh.h"
+#include "boards/virtual/subjects.h"
+#include "boards/virtual/target.h"
+#include "common/geometry/camera.h"
+#include "common/geometry/plane.h"
+
+namespace mirrorscan::virtual_cabinet {
+
+struct SceneCamera {
+  std::string name;
+  Camera camera;
+  double fps = 30.0;
+};
+
+// A rectangular planar mirror, optionally with a smooth low-order bump (a cheap hall
+// mirror): the surface is displaced along the normal by
+//   bump_mm * (1 - a²)(1 - b²), a, b ∈ [-1, 1] across the width and height,
+// which tilts the local normal and bends the reflected rays.
+struct Mirror {
+  std::string name;          // "left" or "right"
+  Plane plane;               // normal towards the subject
+  Eigen::Vector3d origin;    // bottom corner at the cabinet's symmetry axis (inner edge)
+  Eigen::Vector3d along;     // unit, horizontal, from the inner edge outwards
+  Eigen::Vector3d up;        // unit +z
+  double width = 620.0;
+  double height = 1700.0;
+  double bump_mm = 0.0;
+  double reflectivity = 0.9;
+
+  // Coordinates (a along, b up) of a point in the mirror plane, in mm from `origin`.
+  Eigen::Vector2d Local(const Eigen::Vector3d& point) const;
+  bool Contains(const Eigen::Vector3d& point_in_plane) const;
+  // Surface displacement along the normal and the unit surface normal at a local point.
+  double Displacement(const Eigen::Vector2d& local) const;
+  Eigen::Vector3d SurfaceNormal(const Eigen::Vector2d& local) const;
+  // Reflects a ray that meets the mirror; nullopt if it misses the mirror's rectangle.
+  std::optional<Ray3d> Reflect(const Ray3d& ray) const;
+  std::array<Eigen::Vector3d, 4> Corners() const;
+  TriangleMesh Mesh() const;
+};
+
+// Diffuse panel behind each mirror, parallel to it at a known offset, wider than the
+// mirror so the laser lines on its visible margin give the slide height (the paper's
+// laser calibration target).
+struct Panel {
+  std::string name;
+  Plane plane;
+  Eigen::Vector3d origin, along, up;
+  double width = 0.0, height = 0.0;
+  double offset_mm = 0.0;  // behind the mirror surface
+  double albedo = 0.8;
+  TriangleMesh Mesh() const;
+};
+
+// n parallel laser planes on a slide moving along +z at constant speed:
+// laser k at time t is the plane normal · x = start + speed·t + k·spacing.
+struct Lasers {
+  int count = 3;
+  double spacing_mm = 200.0;
+  double start_mm = -50.0;
+  double speed_mm_s = 150.0;
+  double sheet_sigma_mm = 1.0;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // tilted slightly when tilt is set
+  Eigen::Vector2d emitter_xy{0.0, -900.0};
+  double power = 1.0;  // relative; the sensor maps it to DN
+
+  double HeightAt(int laser, double t) const { return start_mm + speed_mm_s * t + laser * spacing_mm; }
+  Plane PlaneAt(int laser, double t) const { return Plane{normal, -HeightAt(laser, t)}; }
+  // Emitter position in the plane of `laser` at time t, on the slide's axis.
+  Eigen::Vector3d EmitterAt(double height) const { return {emitter_xy.x(), emitter_xy.y(), height}; }
+};
+
+struct Sensor {
+  double ambient_dn = 25.0;        // white diffuse surface under ambient light
+  double laser_dn = 220.0;         // peak of a white surface 1 m from the emitter, head-on
+  double read_noise_dn = 2.0;
+  double electrons_per_dn = 40.0;  // shot noise: variance = signal / electrons_per_dn
+  double speckle_contrast = 0.2;   // multiplicative, varies along the stripe
+  double blur_px = 0.7;            // Gaussian camera blur
+  bool noise = true;
+};
+
+struct Scene {
+  std::vector<SceneCamera> cameras;
+  std::array<Mirror, 2> mirrors;  // [0] left (x < 0), [1] right
+  std::array<Panel, 2> panels;
+  double floor_albedo = 0.25;
+  double subject_albedo = 0.6;
+  Lasers lasers;
+  Sensor sensor;
+  Subject subject;
+  std::optional<CalibrationTarget> target;
+  int frames = 300;
+  uint64_t seed = 1;
+  nlohmann::json source;  // the scene as given, defaults filled in by the caller's file
+
+  // Scene file with every key optional (defaults documented in docs/virtual-cabinet.md);
+  // errors are ConfigError naming file and key.
+  static Scene Load(const std::filesystem::path& file);
+  static Scene Parse(const nlohmann::json& json, const std::string& file_name,
+                     const std::filesystem::path& base_dir);
+
+  double FrameTime(int frame) const { return frame / cameras.at(0).fps; }
+  // The cabinet's true calibration in the calibration.json schema.
+  nlohmann::json TrueCalibration() const;
+};
+
+}  // namespace mirrorscan::virtual_cabinet

@@ -1,0 +1,21 @@
+#include <cstdio>
+#include <exception>
+
+#include <CLI/CLI.hpp>
+
+#include "host/cli/sim_command.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"mirrorscan: host tools for the mirrorscan body scanner"};
+  app.require_subcommand(1);
+  mirrorscan::cli::AddSimCommands(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "mirrorscan: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

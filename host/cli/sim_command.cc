@@ -1,0 +1,267 @@
+#include "host/cli/sim_command.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "boards/virtual/renderer.h"
+#include "boards/virtual/scene.h"
+
+namespace mirrorscan::cli {
+
+namespace fs = std::filesystem;
+using virtual_cabinet::GrayImage;
+using virtual_cabinet::Renderer;
+using virtual_cabinet::Scene;
+using virtual_cabinet::TruthPeak;
+
+namespace {
+
+struct SimOptions {
+  std::string scene_path;
+  std::string out;
+  std::string camera;
+  int frame = -1;
+  double time = -1;
+  int frames = -1;
+  bool no_lasers = false;
+  bool no_noise = false;
+  bool truth = false;
+  bool json = false;
+  std::string contact_sheet;
+};
+
+cv::Mat ToMat(const GrayImage& image) {
+  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data())).clone();
+}
+
+void WritePng(const fs::path& path, const cv::Mat& image) {
+  if (!cv::imwrite(path.string(), image)) throw std::runtime_error("cannot write " + path.string());
+}
+
+void WriteJson(const fs::path& path, const nlohmann::json& json) {
+  std::ofstream out(path);
+  out << json.dump(2) << "\n";
+  if (!out) throw std::runtime_error("cannot write " + path.string());
+}
+
+void WriteTruthCsv(std::ostream& out, int frame, const std::vector<TruthPeak>& peaks) {
+  out << std::setprecision(10);
+  for (const auto& p : peaks) {
+    out << frame << ',' << p.u << ',' << p.v << ',' << p.laser << ',' << ViewName(p.view) << ','
+        << p.point_in_world.x() << ',' << p.point_in_world.y() << ',' << p.point_in_world.z() << ','
+        << p.peak_dn << '\n';
+  }
+}
+constexpr const char* kTruthHeader = "frame,u,v,laser,view,x_mm,y_mm,z_mm,peak_dn\n";
+
+Scene LoadScene(const SimOptions& o) {
+  Scene scene = Scene::Load(o.scene_path);
+  if (o.no_noise) scene.sensor.noise = false;
+  if (o.frames > 0) scene.frames = o.frames;
+  return scene;
+}
+
+std::vector<int> SelectCameras(const Scene& scene, const std::string& name) {
+  std::vector<int> cameras;
+  for (size_t i = 0; i < scene.cameras.size(); ++i) {
+    if (name.empty() || scene.cameras[i].name == name) cameras.push_back(static_cast<int>(i));
+  }
+  if (cameras.empty()) {
+    std::string names;
+    for (const auto& c : scene.cameras) names += (names.empty() ? "" : ", ") + c.name;
+    throw std::runtime_error("--camera " + name + ": no such camera (scene has: " + names + ")");
+  }
+  return cameras;
+}
+
+nlohmann::json SceneInfo(const Scene& scene) {
+  nlohmann::json info = {{"subject", {{"type", scene.subject.type}, {"metadata", scene.subject.metadata}}},
+                         {"frames", scene.frames},
+                         {"fps", scene.cameras[0].fps},
+                         {"seed", scene.seed}};
+  if (scene.target) info["target"] = scene.target->ToJson();
+  return info;
+}
+
+void Render(const SimOptions& o) {
+  const Scene scene = LoadScene(o);
+  const Renderer renderer(scene);
+  int frame = o.frame >= 0 ? o.frame : scene.frames / 2;
+  double t = scene.FrameTime(frame);
+  if (o.time >= 0) t = o.time;
+  fs::create_directories(o.out);
+  nlohmann::json written = nlohmann::json::array();
+  for (int camera : SelectCameras(scene, o.camera)) {
+    const std::string stem = scene.cameras[camera].name + "_frame" + std::to_string(frame);
+    const fs::path png = fs::path(o.out) / (stem + ".png");
+    WritePng(png, ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers)));
+    nlohmann::json entry = {{"camera", scene.cameras[camera].name}, {"image", png.string()}, {"time_s", t}};
+    if (!o.no_lasers) {
+      const fs::path csv = fs::path(o.out) / (stem + "_truth.csv");
+      std::ofstream out(csv);
+      out << kTruthHeader;
+      const auto peaks = renderer.Truth(camera, t);
+      WriteTruthCsv(out, frame, peaks);
+      entry["truth"] = csv.string();
+      entry["truth_peaks"] = peaks.size();
+    }
+    written.push_back(entry);
+  }
+  WriteJson(fs::path(o.out) / "calibration.json", scene.TrueCalibration());
+  WriteJson(fs::path(o.out) / "scene.json", SceneInfo(scene));
+  if (o.json) {
+    std::printf("%s\n", nlohmann::json({{"frames", written}}).dump(2).c_str());
+  } else {
+    for (const auto& e : written) std::printf("%s\n", e["image"].get<std::string>().c_str());
+  }
+}
+
+void Scan(const SimOptions& o) {
+  const Scene scene = LoadScene(o);
+  const Renderer renderer(scene);
+  const std::vector<int> cameras = SelectCameras(scene, o.camera);
+  fs::create_directories(o.out);
+  for (int camera : cameras) fs::create_directories(fs::path(o.out) / scene.cameras[camera].name);
+
+  const auto start = std::chrono::steady_clock::now();
+  const int total = scene.frames * static_cast<int>(cameras.size());
+  std::atomic<int> next{0}, done{0};
+  std::mutex truth_mutex, error_mutex;
+  std::string error;
+  std::vector<std::ofstream> truth_files;
+  if (o.truth) {
+    for (int camera : cameras) {
+      truth_files.emplace_back(fs::path(o.out) / scene.cameras[camera].name / "truth.csv");
+      truth_files.back() << kTruthHeader;
+    }
+  }
+  const int sheet_step = std::max(1, scene.frames / 12);
+  std::vector<cv::Mat> sheet_frames(cameras.size() * 12);
+
+  auto worker = [&] {
+    for (int job = next++; job < total; job = next++) {
+      try {
+        const int frame = job / static_cast<int>(cameras.size());
+        const size_t which = job % cameras.size();
+        const int camera = cameras[which];
+        const double t = scene.FrameTime(frame);
+        const cv::Mat image = ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
+        std::ostringstream name;
+        name << "frame_" << std::setw(6) << std::setfill('0') << frame << ".png";
+        WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
+        if (!o.contact_sheet.empty() && frame % sheet_step == 0 && frame / sheet_step < 12) {
+          sheet_frames[which * 12 + frame / sheet_step] = image;
+        }
+        if (o.truth) {
+          const auto peaks = renderer.Truth(camera, t);
+          std::lock_guard<std::mutex> lock(truth_mutex);
+          WriteTruthCsv(truth_files[which], frame, peaks);
+        }
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (error.empty()) error = e.what();
+        next = total;
+      }
+      const int finished = ++done;
+      if (!o.json && (finished % 20 == 0 || finished == total)) {
+        std::fprintf(stderr, "\rsim scan: %d/%d frames", finished, total);
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (unsigned i = 0; i < std::max(1u, std::thread::hardware_concurrency()); ++i) pool.emplace_back(worker);
+  for (auto& t : pool) t.join();
+  if (!o.json) std::fprintf(stderr, "\n");
+  if (!error.empty()) throw std::runtime_error(error);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  nlohmann::json sweep = SceneInfo(scene);
+  sweep["cameras"] = nlohmann::json::array();
+  for (int camera : cameras) sweep["cameras"].push_back(scene.cameras[camera].name);
+  sweep["frame_time_s"] = 1.0 / scene.cameras[0].fps;
+  sweep["laser_height_at_t0_mm"] = scene.lasers.start_mm;
+  sweep["slide_speed_mm_s"] = scene.lasers.speed_mm_s;
+  sweep["laser_spacing_mm"] = scene.lasers.spacing_mm;
+  sweep["lasers"] = scene.lasers.count;
+  WriteJson(fs::path(o.out) / "sweep.json", sweep);
+  WriteJson(fs::path(o.out) / "calibration.json", scene.TrueCalibration());
+
+  if (!o.contact_sheet.empty()) {
+    // Twelve frames per camera spread over the sweep, one row per camera, at half size.
+    std::vector<cv::Mat> rows;
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      std::vector<cv::Mat> tiles;
+      for (int i = 0; i < 12; ++i) {
+        cv::Mat tile = sheet_frames[c * 12 + i];
+        if (tile.empty()) continue;
+        cv::resize(tile, tile, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+        tiles.push_back(tile);
+      }
+      if (tiles.empty()) continue;
+      std::vector<cv::Mat> grid_rows;
+      for (size_t i = 0; i < tiles.size(); i += 4) {
+        std::vector<cv::Mat> line(tiles.begin() + i, tiles.begin() + std::min(tiles.size(), i + 4));
+        while (line.size() < 4) line.push_back(cv::Mat::zeros(tiles[0].size(), CV_8U));
+        cv::Mat joined;
+        cv::hconcat(line, joined);
+        grid_rows.push_back(joined);
+      }
+      cv::Mat grid;
+      cv::vconcat(grid_rows, grid);
+      rows.push_back(grid);
+    }
+    cv::Mat sheet;
+    cv::vconcat(rows, sheet);
+    WritePng(o.contact_sheet, sheet);
+  }
+  const double fps = total / seconds;
+  if (o.json) {
+    std::printf("%s\n", nlohmann::json({{"frames", total}, {"seconds", seconds}, {"frames_per_second", fps}, {"out", o.out}}).dump(2).c_str());
+  } else {
+    std::printf("rendered %d frames in %.2f s (%.1f frames/s) into %s\n", total, seconds, fps, o.out.c_str());
+  }
+}
+
+}  // namespace
+
+void AddSimCommands(CLI::App& app) {
+  auto* sim = app.add_subcommand("sim", "The virtual cabinet: render frames with ground truth, offline");
+  sim->require_subcommand(1);
+  auto options = std::make_shared<SimOptions>();
+
+  auto* render = sim->add_subcommand("render", "Render one frame per camera, its ground truth and the true calibration");
+  render->add_option("--scene", options->scene_path, "Scene file (see docs/virtual-cabinet.md)")->required()->check(CLI::ExistingFile);
+  render->add_option("--out", options->out, "Output directory")->required();
+  render->add_option("--frame", options->frame, "Frame index of the sweep (default: the middle)")->check(CLI::NonNegativeNumber);
+  render->add_option("--time", options->time, "Slide time in seconds (overrides --frame)")->check(CLI::NonNegativeNumber);
+  render->add_option("--camera", options->camera, "Only this camera (by name)");
+  render->add_flag("--no-lasers", options->no_lasers, "Lasers off (e.g. a calibration target frame)");
+  render->add_flag("--no-noise", options->no_noise, "Noise-free sensor (no shot/read noise, no speckle)");
+  render->add_flag("--json", options->json, "Machine-readable output");
+  render->callback([options] { Render(*options); });
+
+  auto* scan = sim->add_subcommand("scan", "Render the frames of a whole sweep, per camera, with sweep.json and the true calibration");
+  scan->add_option("--scene", options->scene_path, "Scene file")->required()->check(CLI::ExistingFile);
+  scan->add_option("--out", options->out, "Output directory")->required();
+  scan->add_option("--frames", options->frames, "Render only the first N frames")->check(CLI::PositiveNumber);
+  scan->add_option("--camera", options->camera, "Only this camera (by name)");
+  scan->add_flag("--truth", options->truth, "Also write <camera>/truth.csv (stripe centres per column)");
+  scan->add_flag("--no-noise", options->no_noise, "Noise-free sensor");
+  scan->add_option("--contact-sheet", options->contact_sheet, "Write a PNG with 12 frames per camera");
+  scan->add_flag("--json", options->json, "Machine-readable output");
+  scan->callback([options] { Scan(*options); });
+}
+
+}  // namespace mirrorscan::cli
