@@ -34,7 +34,8 @@ RTCRay MakeRay(const Ray3d& ray, double t_min, double t_max) {
   r.dir_y = static_cast<float>(ray.direction.y());
   r.dir_z = static_cast<float>(ray.direction.z());
   r.tnear = static_cast<float>(t_min);
-  r.tfar = std::isfinite(t_max) ? static_cast<float>(t_max) : std::numeric_limits<float>::infinity();
+  r.tfar =
+      std::isfinite(t_max) ? static_cast<float>(t_max) : std::numeric_limits<float>::infinity();
   r.mask = 0xFFFFFFFFu;
   r.flags = 0;
   r.time = 0.0f;
@@ -59,12 +60,12 @@ RayTracer::~RayTracer() {
 int RayTracer::AddMesh(const TriangleMesh& mesh) {
   if (impl_->committed) throw std::logic_error("RayTracer::AddMesh after Commit");
   RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-      std::max<size_t>(mesh.vertices.size(), 1)));
-  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-      std::max<size_t>(mesh.triangles.size(), 1)));
+  auto* vertices = static_cast<float*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                              3 * sizeof(float), std::max<size_t>(mesh.vertices.size(), 1)));
+  auto* indices = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                              3 * sizeof(unsigned), std::max<size_t>(mesh.triangles.size(), 1)));
   ThrowOnDeviceError(impl_->device, "geometry buffers");
   for (size_t i = 0; i < mesh.vertices.size(); ++i) {
     for (int c = 0; c < 3; ++c) vertices[3 * i + c] = static_cast<float>(mesh.vertices[i][c]);

@@ -14,7 +14,7 @@ namespace mirrorscan::virtual_cabinet {
 
 namespace {
 
-constexpr double kTraceEpsilon = 1e-3;  // mm; keeps secondary rays off their own surface
+constexpr double kTraceEpsilon = 1e-3;   // mm; keeps secondary rays off their own surface
 constexpr double kMaxGradientMm = 10.0;  // laser-plane distance spanned by one pixel, capped
 
 // Deterministic per-frame random numbers (SplitMix64), so frames render in any order or
@@ -54,7 +54,8 @@ class FrameRandom {
 };
 
 uint64_t MixSeed(uint64_t a, uint64_t b, uint64_t c) {
-  FrameRandom r(a * 0x632BE59BD9B4E019ull ^ (b + 0x9E3779B97F4A7C15ull) * 0xD6E8FEB86659FD93ull ^ c);
+  FrameRandom r(a * 0x632BE59BD9B4E019ull ^ (b + 0x9E3779B97F4A7C15ull) * 0xD6E8FEB86659FD93ull ^
+                c);
   return r.Next();
 }
 
@@ -89,37 +90,48 @@ void ParallelRows(int rows, const std::function<void(int begin, int end)>& work)
 
 const char* ViewName(View view) {
   switch (view) {
-    case View::kCenter: return "center";
-    case View::kLeft: return "left";
-    case View::kRight: return "right";
-    case View::kLeftRight: return "left-right";
-    case View::kRightLeft: return "right-left";
-    case View::kNone: break;
+    case View::kCenter:
+      return "center";
+    case View::kLeft:
+      return "left";
+    case View::kRight:
+      return "right";
+    case View::kLeftRight:
+      return "left-right";
+    case View::kRightLeft:
+      return "right-left";
+    case View::kNone:
+      break;
   }
   return "none";
 }
 
 std::vector<int> MirrorPath(View view) {
   switch (view) {
-    case View::kLeft: return {0};
-    case View::kRight: return {1};
-    case View::kLeftRight: return {0, 1};
-    case View::kRightLeft: return {1, 0};
-    default: return {};
+    case View::kLeft:
+      return {0};
+    case View::kRight:
+      return {1};
+    case View::kLeftRight:
+      return {0, 1};
+    case View::kRightLeft:
+      return {1, 0};
+    default:
+      return {};
   }
 }
 
 struct Renderer::CameraCache {
   struct LaserPixel {
-    double w;     // laser normal · surface point (mm)
-    float span;   // change of w across the pixel along v, capped
-    float gain;   // DN at the sheet's centre, before speckle
+    double w;    // laser normal · surface point (mm)
+    float span;  // change of w across the pixel along v, capped
+    float gain;  // DN at the sheet's centre, before speckle
     uint32_t index;
   };
   int width = 0, height = 0;
   std::vector<View> views;
-  cv::Mat base;                    // ambient image, blurred, CV_32F
-  std::vector<LaserPixel> lit;     // pixels any laser can reach, sorted by w
+  cv::Mat base;                 // ambient image, blurred, CV_32F
+  std::vector<LaserPixel> lit;  // pixels any laser can reach, sorted by w
   double max_span = 0.0;
 };
 
@@ -150,7 +162,8 @@ SurfaceSample Renderer::TracePixel(int camera, const Eigen::Vector2d& pixel) con
   if (!ray) return sample;
   std::vector<int> path;
   for (int bounce = 0; bounce <= 2; ++bounce) {
-    const auto hit = tracer_.Intersect(*ray, kTraceEpsilon, std::numeric_limits<double>::infinity());
+    const auto hit =
+        tracer_.Intersect(*ray, kTraceEpsilon, std::numeric_limits<double>::infinity());
     if (!hit) return sample;
     const enum Material material = materials_[hit->geometry];
     if (material == Material::kMirror) {
@@ -176,7 +189,8 @@ SurfaceSample Renderer::TracePixel(int camera, const Eigen::Vector2d& pixel) con
   return sample;
 }
 
-double Renderer::LaserIrradiance(const Eigen::Vector3d& point, const Eigen::Vector3d& normal) const {
+double Renderer::LaserIrradiance(const Eigen::Vector3d& point,
+                                 const Eigen::Vector3d& normal) const {
   const Lasers& lasers = scene_.lasers;
   // The emitter sits on the slide in the laser plane through the point.
   const Eigen::Vector3d& n = lasers.normal;
@@ -219,14 +233,18 @@ double Renderer::LaserIrradiance(const Eigen::Vector3d& point, const Eigen::Vect
 
 double Renderer::Albedo(const RayHit& hit, double footprint_mm) const {
   switch (materials_[hit.geometry]) {
-    case Material::kFloor: return scene_.floor_albedo;
-    case Material::kPanel: return scene_.panels[0].albedo;
-    case Material::kSubject: return scene_.subject_albedo;
+    case Material::kFloor:
+      return scene_.floor_albedo;
+    case Material::kPanel:
+      return scene_.panels[0].albedo;
+    case Material::kSubject:
+      return scene_.subject_albedo;
     case Material::kTarget: {
       const auto a = scene_.target->AlbedoArea(hit.point, footprint_mm);
       return a ? *a : 0.85;
     }
-    default: return 0.0;
+    default:
+      return 0.0;
   }
 }
 
@@ -280,18 +298,21 @@ void Renderer::BuildCache(int camera) const {
         }
         const double albedo = Albedo(s.hit, footprint);
         const double facing = std::max(0.0, -s.hit.normal.dot(s.last_ray.direction));
-        base.at<float>(v, u) =
-            static_cast<float>(sensor.ambient_dn * albedo * s.transmission * (0.35 + 0.65 * facing));
+        base.at<float>(v, u) = static_cast<float>(sensor.ambient_dn * albedo * s.transmission *
+                                                  (0.35 + 0.65 * facing));
         const double irradiance = LaserIrradiance(s.hit.point, s.hit.normal);
         if (irradiance <= 0.0) continue;
-        const double gain = sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * irradiance;
+        const double gain =
+            sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * irradiance;
         if (gain < 1e-3) continue;
         lit_rows[v].push_back({laser_normal.dot(s.hit.point), static_cast<float>(span),
                                static_cast<float>(gain), static_cast<uint32_t>(index)});
       }
     }
   });
-  if (sensor.blur_px > 0) cv::GaussianBlur(base, base, cv::Size(0, 0), sensor.blur_px, sensor.blur_px, cv::BORDER_REPLICATE);
+  if (sensor.blur_px > 0)
+    cv::GaussianBlur(base, base, cv::Size(0, 0), sensor.blur_px, sensor.blur_px,
+                     cv::BORDER_REPLICATE);
   cache->base = base;
   for (auto& row : lit_rows) {
     for (const auto& p : row) cache->max_span = std::max<double>(cache->max_span, p.span);
@@ -340,7 +361,8 @@ GrayImage Renderer::RenderFrame(int camera, double t, uint64_t frame_index, bool
     }
     if (row_max >= 0 && sensor.blur_px > 0) {
       const int margin = static_cast<int>(std::ceil(4 * sensor.blur_px)) + 1;
-      const int r0 = std::max(0, row_min - margin), r1 = std::min(cache.height, row_max + margin + 1);
+      const int r0 = std::max(0, row_min - margin),
+                r1 = std::min(cache.height, row_max + margin + 1);
       cv::Mat band = laser.rowRange(r0, r1);
       cv::GaussianBlur(band.clone(), band, cv::Size(0, 0), sensor.blur_px, sensor.blur_px,
                        cv::BORDER_CONSTANT);
@@ -373,24 +395,29 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
   const Eigen::Vector3d center = cam.CenterInWorld();
   std::vector<TruthPeak> peaks;
   std::set<std::tuple<int, int, int, long long>> seen;
-  const View views[] = {View::kCenter, View::kLeft, View::kRight, View::kLeftRight, View::kRightLeft};
+  const View views[] = {View::kCenter, View::kLeft, View::kRight, View::kLeftRight,
+                        View::kRightLeft};
 
   for (int k = 0; k < scene_.lasers.count; ++k) {
     const Plane plane = scene_.lasers.PlaneAt(k, t);
     for (size_t g = 0; g < materials_.size(); ++g) {
       const enum Material material = materials_[g];
-      if (material != Material::kSubject && material != Material::kTarget && material != Material::kPanel) continue;
+      if (material != Material::kSubject && material != Material::kTarget &&
+          material != Material::kPanel)
+        continue;
       const TriangleMesh& mesh = tracer_.mesh(static_cast<int>(g));
       for (size_t tri = 0; tri < mesh.triangles.size(); ++tri) {
         const Eigen::Vector3i& ids = mesh.triangles[tri];
-        const Eigen::Vector3d p[3] = {mesh.vertices[ids[0]], mesh.vertices[ids[1]], mesh.vertices[ids[2]]};
+        const Eigen::Vector3d p[3] = {mesh.vertices[ids[0]], mesh.vertices[ids[1]],
+                                      mesh.vertices[ids[2]]};
         double d[3];
         for (int i = 0; i < 3; ++i) d[i] = plane.SignedDistance(p[i]);
         Eigen::Vector3d ends[2];
         int found = 0;
         for (int i = 0; i < 3 && found < 2; ++i) {
           const int j = (i + 1) % 3;
-          if ((d[i] >= 0) != (d[j] >= 0)) ends[found++] = p[i] + (d[i] / (d[i] - d[j])) * (p[j] - p[i]);
+          if ((d[i] >= 0) != (d[j] >= 0))
+            ends[found++] = p[i] + (d[i] / (d[i] - d[j])) * (p[j] - p[i]);
         }
         if (found != 2) continue;
         const Eigen::Vector3d normal = mesh.TriangleNormal(static_cast<int>(tri));
@@ -404,13 +431,15 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
           if (material == Material::kSubject && normal.dot(virtual_center - mid) <= 0) continue;
           auto project = [&](const Eigen::Vector3d& point) {
             Eigen::Vector3d q = point;
-            for (auto it = path.rbegin(); it != path.rend(); ++it) q = scene_.mirrors[*it].plane.ReflectPoint(q);
+            for (auto it = path.rbegin(); it != path.rend(); ++it)
+              q = scene_.mirrors[*it].plane.ReflectPoint(q);
             return cam.ProjectWorld(q);
           };
           const auto pa = project(ends[0]), pb = project(ends[1]);
           if (!pa || !pb) continue;
           const double u_lo = std::min(pa->x(), pb->x()), u_hi = std::max(pa->x(), pb->x());
-          for (int u = static_cast<int>(std::ceil(u_lo)); u <= static_cast<int>(std::floor(u_hi)); ++u) {
+          for (int u = static_cast<int>(std::ceil(u_lo)); u <= static_cast<int>(std::floor(u_hi));
+               ++u) {
             if (u < 0 || u >= cam.intrinsics.width) continue;
             // Bisection on the segment for the exact column (the image of a straight
             // segment is curved by lens distortion).
@@ -423,19 +452,24 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
               point = ends[0] + mid_t * (ends[1] - ends[0]);
               pixel = project(point);
               if (!pixel) break;
-              if ((pixel->x() < u) == rising) lo = mid_t; else hi = mid_t;
+              if ((pixel->x() < u) == rising)
+                lo = mid_t;
+              else
+                hi = mid_t;
             }
             if (!pixel || !cam.intrinsics.InImage(*pixel)) continue;
             const SurfaceSample s = TracePixel(camera, {u, pixel->y()});
             if (s.view != view || (s.hit.point - point).norm() > 0.05) continue;
             const double irradiance = LaserIrradiance(point, s.hit.normal);
             if (irradiance <= 0) continue;
-            const auto key = std::make_tuple(k, static_cast<int>(view), u, std::llround(pixel->y() * 1000));
+            const auto key =
+                std::make_tuple(k, static_cast<int>(view), u, std::llround(pixel->y() * 1000));
             if (!seen.insert(key).second) continue;
             TruthPeak peak;
             peak.camera = camera;
             peak.laser = k;
             peak.view = view;
+            peak.material = material;
             peak.u = u;
             peak.v = pixel->y();
             peak.point_in_world = point;

@@ -14,7 +14,14 @@
 namespace mirrorscan::virtual_cabinet {
 
 // How a camera ray reached the surface it sees: directly, or through one or two mirrors.
-enum class View : uint8_t { kCenter = 0, kLeft = 1, kRight = 2, kLeftRight = 3, kRightLeft = 4, kNone = 255 };
+enum class View : uint8_t {
+  kCenter = 0,
+  kLeft = 1,
+  kRight = 2,
+  kLeftRight = 3,
+  kRightLeft = 4,
+  kNone = 255
+};
 const char* ViewName(View view);
 // Mirror indices (0 left, 1 right) in the order the camera ray meets them.
 std::vector<int> MirrorPath(View view);
@@ -24,10 +31,10 @@ enum class Material : uint8_t { kNone, kFloor, kPanel, kMirror, kSubject, kTarge
 struct SurfaceSample {
   View view = View::kNone;
   Material material = Material::kNone;
-  RayHit hit;                  // the diffuse surface finally seen, normal facing the ray
-  Ray3d last_ray;              // the ray segment that meets it (after reflections)
-  double path_length = 0.0;    // camera to surface, unfolded
-  double transmission = 1.0;   // product of mirror reflectivities on the way
+  RayHit hit;                 // the diffuse surface finally seen, normal facing the ray
+  Ray3d last_ray;             // the ray segment that meets it (after reflections)
+  double path_length = 0.0;   // camera to surface, unfolded
+  double transmission = 1.0;  // product of mirror reflectivities on the way
 };
 
 struct GrayImage {
@@ -41,10 +48,11 @@ struct TruthPeak {
   int camera = 0;
   int laser = 0;
   View view = View::kCenter;
-  int u = 0;                     // image column
-  double v = 0.0;                // exact sub-pixel row of the stripe centre
-  Eigen::Vector3d point_in_world;  // on the laser plane and on the surface
-  double peak_dn = 0.0;          // expected stripe peak before blur and noise
+  enum Material material = Material::kSubject;  // subject, target or panel
+  int u = 0;                                    // image column
+  double v = 0.0;                               // exact sub-pixel row of the stripe centre
+  Eigen::Vector3d point_in_world;               // on the laser plane and on the surface
+  double peak_dn = 0.0;                         // expected stripe peak before blur and noise
 };
 
 // Renders the virtual cabinet. The scene is static, so everything that does not depend

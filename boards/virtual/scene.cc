@@ -51,7 +51,8 @@ SceneCamera ParseCamera(const JsonReader& r) {
   // Corners of the image must unproject, or the distortion model folds over.
   for (double u : {-0.5, k.width - 0.5}) {
     for (double v : {-0.5, k.height - 0.5}) {
-      if (!k.Unproject({u, v})) r.Fail("distortion", "distortion does not invert at the image corners");
+      if (!k.Unproject({u, v}))
+        r.Fail("distortion", "distortion does not invert at the image corners");
     }
   }
   return c;
@@ -135,8 +136,8 @@ Scene Scene::Load(const std::filesystem::path& file) {
 Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
                    const std::filesystem::path& base_dir) {
   const JsonReader root(json, file_name);
-  root.AllowOnly({"cameras", "mirrors", "panels", "floor", "lasers", "sensor", "subject",
-                  "target", "frames", "seed"});
+  root.AllowOnly({"cameras", "mirrors", "panels", "floor", "lasers", "sensor", "subject", "target",
+                  "frames", "seed"});
   Scene scene;
   scene.source = json;
 
@@ -177,7 +178,8 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
     m.origin = corner;
     m.along = Eigen::Vector3d(sign * std::cos(phi), -std::sin(phi), 0.0);
     m.up = Eigen::Vector3d::UnitZ();
-    m.plane = Plane::FromPointNormal(corner, Eigen::Vector3d(-sign * std::sin(phi), -std::cos(phi), 0.0));
+    m.plane =
+        Plane::FromPointNormal(corner, Eigen::Vector3d(-sign * std::sin(phi), -std::cos(phi), 0.0));
     m.width = width;
     m.height = height;
     m.reflectivity = reflectivity;
@@ -218,10 +220,10 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   lasers.sheet_sigma_mm = lr.Number("sheet_sigma_mm", 1.0, 0.05, 20.0);
   const auto tilt = lr.Numbers("tilt_deg", 2, std::vector<double>{0.0, 0.0});
   if (std::abs(tilt[0]) > 10 || std::abs(tilt[1]) > 10) lr.Fail("tilt_deg", "must be within ±10°");
-  lasers.normal = (Eigen::AngleAxisd(tilt[0] * kDeg, Eigen::Vector3d::UnitX()) *
-                   Eigen::AngleAxisd(tilt[1] * kDeg, Eigen::Vector3d::UnitY()) *
-                   Eigen::Vector3d::UnitZ())
-                      .normalized();
+  lasers.normal =
+      (Eigen::AngleAxisd(tilt[0] * kDeg, Eigen::Vector3d::UnitX()) *
+       Eigen::AngleAxisd(tilt[1] * kDeg, Eigen::Vector3d::UnitY()) * Eigen::Vector3d::UnitZ())
+          .normalized();
   const auto emitter = lr.Numbers("emitter_mm", 2, std::vector<double>{0.0, -900.0});
   lasers.emitter_xy = {emitter[0], emitter[1]};
   lasers.power = lr.Number("power", 1.0, 0.0, 100.0);
@@ -242,7 +244,8 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   nlohmann::json subject_json = {{"type", "mannequin"}};
   if (json.contains("subject")) subject_json = json["subject"];
   if (subject_json.is_object() && subject_json.contains("albedo")) {
-    scene.subject_albedo = JsonReader(subject_json, file_name, "subject").Number("albedo", 0.6, 0.0, 1.0);
+    scene.subject_albedo =
+        JsonReader(subject_json, file_name, "subject").Number("albedo", 0.6, 0.0, 1.0);
     subject_json.erase("albedo");
   }
   scene.subject = ParseSubject(JsonReader(subject_json, file_name, "subject"), base_dir);
@@ -271,23 +274,26 @@ nlohmann::json Scene::TrueCalibration() const {
       const auto corners = m.Corners();
       for (int edge = 0; edge < 4; ++edge) {
         for (int i = 0; i < 16; ++i) {
-          const Eigen::Vector3d p = corners[edge] + (corners[(edge + 1) % 4] - corners[edge]) * (i / 16.0);
+          const Eigen::Vector3d p =
+              corners[edge] + (corners[(edge + 1) % 4] - corners[edge]) * (i / 16.0);
           if (const auto px = c.camera.ProjectWorld(p)) outline.push_back({px->x(), px->y()});
         }
       }
       views.push_back({{"name", m.name}, {"mirror", m.name}, {"outline_px", outline}});
     }
-    cameras_json.push_back(
-        {{"name", c.name},
-         {"width", k.width},
-         {"height", k.height},
-         {"fps", c.fps},
-         {"K", {{k.fx, 0.0, k.cx}, {0.0, k.fy, k.cy}, {0.0, 0.0, 1.0}}},
-         {"distortion", {k.k1, k.k2, k.p1, k.p2, k.k3}},
-         {"cam_from_world",
-          {{"rotation", {{r(0, 0), r(0, 1), r(0, 2)}, {r(1, 0), r(1, 1), r(1, 2)}, {r(2, 0), r(2, 1), r(2, 2)}}},
-           {"translation_mm", vec(c.camera.cam_from_world.translation)}}},
-         {"views", views}});
+    cameras_json.push_back({{"name", c.name},
+                            {"width", k.width},
+                            {"height", k.height},
+                            {"fps", c.fps},
+                            {"K", {{k.fx, 0.0, k.cx}, {0.0, k.fy, k.cy}, {0.0, 0.0, 1.0}}},
+                            {"distortion", {k.k1, k.k2, k.p1, k.p2, k.k3}},
+                            {"cam_from_world",
+                             {{"rotation",
+                               {{r(0, 0), r(0, 1), r(0, 2)},
+                                {r(1, 0), r(1, 1), r(1, 2)},
+                                {r(2, 0), r(2, 1), r(2, 2)}}},
+                              {"translation_mm", vec(c.camera.cam_from_world.translation)}}},
+                            {"views", views}});
   }
   nlohmann::json mirrors_json = nlohmann::json::array();
   for (int i = 0; i < 2; ++i) {

@@ -29,11 +29,11 @@ struct SceneCamera {
 //   bump_mm * (1 - a²)(1 - b²), a, b ∈ [-1, 1] across the width and height,
 // which tilts the local normal and bends the reflected rays.
 struct Mirror {
-  std::string name;          // "left" or "right"
-  Plane plane;               // normal towards the subject
-  Eigen::Vector3d origin;    // bottom corner at the cabinet's symmetry axis (inner edge)
-  Eigen::Vector3d along;     // unit, horizontal, from the inner edge outwards
-  Eigen::Vector3d up;        // unit +z
+  std::string name;        // "left" or "right"
+  Plane plane;             // normal towards the subject
+  Eigen::Vector3d origin;  // bottom corner at the cabinet's symmetry axis (inner edge)
+  Eigen::Vector3d along;   // unit, horizontal, from the inner edge outwards
+  Eigen::Vector3d up;      // unit +z
   double width = 620.0;
   double height = 1700.0;
   double bump_mm = 0.0;
@@ -76,15 +76,19 @@ struct Lasers {
   Eigen::Vector2d emitter_xy{0.0, -900.0};
   double power = 1.0;  // relative; the sensor maps it to DN
 
-  double HeightAt(int laser, double t) const { return start_mm + speed_mm_s * t + laser * spacing_mm; }
+  double HeightAt(int laser, double t) const {
+    return start_mm + speed_mm_s * t + laser * spacing_mm;
+  }
   Plane PlaneAt(int laser, double t) const { return Plane{normal, -HeightAt(laser, t)}; }
   // Emitter position in the plane of `laser` at time t, on the slide's axis.
-  Eigen::Vector3d EmitterAt(double height) const { return {emitter_xy.x(), emitter_xy.y(), height}; }
+  Eigen::Vector3d EmitterAt(double height) const {
+    return {emitter_xy.x(), emitter_xy.y(), height};
+  }
 };
 
 struct Sensor {
-  double ambient_dn = 25.0;        // white diffuse surface under ambient light
-  double laser_dn = 220.0;         // peak of a white surface 1 m from the emitter, head-on
+  double ambient_dn = 25.0;  // white diffuse surface under ambient light
+  double laser_dn = 220.0;   // peak of a white surface 1 m from the emitter, head-on
   double read_noise_dn = 2.0;
   double electrons_per_dn = 40.0;  // shot noise: variance = signal / electrons_per_dn
   double speckle_contrast = 0.2;   // multiplicative, varies along the stripe

@@ -36,15 +36,20 @@ std::optional<Eigen::Vector2d> CameraIntrinsics::Undistort(const Eigen::Vector2d
     if (residual.norm() < 1e-15) break;
     constexpr double kStep = 1e-7;
     Eigen::Matrix2d jacobian;
-    jacobian.col(0) = (Distort(x + Eigen::Vector2d(kStep, 0)) - Distort(x - Eigen::Vector2d(kStep, 0))) / (2 * kStep);
-    jacobian.col(1) = (Distort(x + Eigen::Vector2d(0, kStep)) - Distort(x - Eigen::Vector2d(0, kStep))) / (2 * kStep);
+    jacobian.col(0) =
+        (Distort(x + Eigen::Vector2d(kStep, 0)) - Distort(x - Eigen::Vector2d(kStep, 0))) /
+        (2 * kStep);
+    jacobian.col(1) =
+        (Distort(x + Eigen::Vector2d(0, kStep)) - Distort(x - Eigen::Vector2d(0, kStep))) /
+        (2 * kStep);
     x -= jacobian.inverse() * residual;
   }
   if ((Distort(x) - distorted).norm() > 1e-10 || !x.allFinite()) return std::nullopt;
   return x;
 }
 
-std::optional<Eigen::Vector2d> CameraIntrinsics::Project(const Eigen::Vector3d& point_in_cam) const {
+std::optional<Eigen::Vector2d> CameraIntrinsics::Project(
+    const Eigen::Vector3d& point_in_cam) const {
   if (!(point_in_cam.z() > 1e-12)) return std::nullopt;
   const Eigen::Vector2d distorted = Distort(point_in_cam.head<2>() / point_in_cam.z());
   return Eigen::Vector2d(fx * distorted.x() + cx, fy * distorted.y() + cy);

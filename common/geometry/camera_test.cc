@@ -63,9 +63,9 @@ TEST(CameraTest, UnprojectMatchesOpenCvUndistortPoints) {
     for (int u = 0; u < k.width; u += 41) pixels.emplace_back(u + 0.25, v - 0.125);
   std::vector<cv::Point2d> expected;
   // OpenCV iterates a fixed number of times unless told to converge tightly.
-  cv::undistortPoints(pixels, expected, CameraMatrix(k), DistCoeffs(k), cv::noArray(),
-                      cv::noArray(),
-                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 200, 1e-15));
+  cv::undistortPoints(
+      pixels, expected, CameraMatrix(k), DistCoeffs(k), cv::noArray(), cv::noArray(),
+      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 200, 1e-15));
   for (size_t i = 0; i < pixels.size(); ++i) {
     const auto ray = k.Unproject({pixels[i].x, pixels[i].y});
     ASSERT_TRUE(ray);

@@ -43,7 +43,6 @@ struct Plane {
 };
 
 // Ray parameter t >= t_min where the ray meets the plane; nullopt when parallel or behind.
-std::optional<double> IntersectRayPlane(const Ray3d& ray, const Plane& plane,
-                                        double t_min = 0.0);
+std::optional<double> IntersectRayPlane(const Ray3d& ray, const Plane& plane, double t_min = 0.0);
 
 }  // namespace mirrorscan

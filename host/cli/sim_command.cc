@@ -43,7 +43,8 @@ struct SimOptions {
 };
 
 cv::Mat ToMat(const GrayImage& image) {
-  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data())).clone();
+  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data()))
+      .clone();
 }
 
 void WritePng(const fs::path& path, const cv::Mat& image) {
@@ -87,10 +88,11 @@ std::vector<int> SelectCameras(const Scene& scene, const std::string& name) {
 }
 
 nlohmann::json SceneInfo(const Scene& scene) {
-  nlohmann::json info = {{"subject", {{"type", scene.subject.type}, {"metadata", scene.subject.metadata}}},
-                         {"frames", scene.frames},
-                         {"fps", scene.cameras[0].fps},
-                         {"seed", scene.seed}};
+  nlohmann::json info = {
+      {"subject", {{"type", scene.subject.type}, {"metadata", scene.subject.metadata}}},
+      {"frames", scene.frames},
+      {"fps", scene.cameras[0].fps},
+      {"seed", scene.seed}};
   if (scene.target) info["target"] = scene.target->ToJson();
   return info;
 }
@@ -106,8 +108,10 @@ void Render(const SimOptions& o) {
   for (int camera : SelectCameras(scene, o.camera)) {
     const std::string stem = scene.cameras[camera].name + "_frame" + std::to_string(frame);
     const fs::path png = fs::path(o.out) / (stem + ".png");
-    WritePng(png, ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers)));
-    nlohmann::json entry = {{"camera", scene.cameras[camera].name}, {"image", png.string()}, {"time_s", t}};
+    WritePng(png,
+             ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers)));
+    nlohmann::json entry = {
+        {"camera", scene.cameras[camera].name}, {"image", png.string()}, {"time_s", t}};
     if (!o.no_lasers) {
       const fs::path csv = fs::path(o.out) / (stem + "_truth.csv");
       std::ofstream out(csv);
@@ -157,7 +161,8 @@ void Scan(const SimOptions& o) {
         const size_t which = job % cameras.size();
         const int camera = cameras[which];
         const double t = scene.FrameTime(frame);
-        const cv::Mat image = ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
+        const cv::Mat image =
+            ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
         std::ostringstream name;
         name << "frame_" << std::setw(6) << std::setfill('0') << frame << ".png";
         WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
@@ -181,11 +186,13 @@ void Scan(const SimOptions& o) {
     }
   };
   std::vector<std::thread> pool;
-  for (unsigned i = 0; i < std::max(1u, std::thread::hardware_concurrency()); ++i) pool.emplace_back(worker);
+  for (unsigned i = 0; i < std::max(1u, std::thread::hardware_concurrency()); ++i)
+    pool.emplace_back(worker);
   for (auto& t : pool) t.join();
   if (!o.json) std::fprintf(stderr, "\n");
   if (!error.empty()) throw std::runtime_error(error);
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   nlohmann::json sweep = SceneInfo(scene);
   sweep["cameras"] = nlohmann::json::array();
@@ -228,38 +235,59 @@ void Scan(const SimOptions& o) {
   }
   const double fps = total / seconds;
   if (o.json) {
-    std::printf("%s\n", nlohmann::json({{"frames", total}, {"seconds", seconds}, {"frames_per_second", fps}, {"out", o.out}}).dump(2).c_str());
+    std::printf(
+        "%s\n",
+        nlohmann::json(
+            {{"frames", total}, {"seconds", seconds}, {"frames_per_second", fps}, {"out", o.out}})
+            .dump(2)
+            .c_str());
   } else {
-    std::printf("rendered %d frames in %.2f s (%.1f frames/s) into %s\n", total, seconds, fps, o.out.c_str());
+    std::printf("rendered %d frames in %.2f s (%.1f frames/s) into %s\n", total, seconds, fps,
+                o.out.c_str());
   }
 }
 
 }  // namespace
 
 void AddSimCommands(CLI::App& app) {
-  auto* sim = app.add_subcommand("sim", "The virtual cabinet: render frames with ground truth, offline");
+  auto* sim =
+      app.add_subcommand("sim", "The virtual cabinet: render frames with ground truth, offline");
   sim->require_subcommand(1);
   auto options = std::make_shared<SimOptions>();
 
-  auto* render = sim->add_subcommand("render", "Render one frame per camera, its ground truth and the true calibration");
-  render->add_option("--scene", options->scene_path, "Scene file (see docs/virtual-cabinet.md)")->required()->check(CLI::ExistingFile);
+  auto* render = sim->add_subcommand(
+      "render", "Render one frame per camera, its ground truth and the true calibration");
+  render->add_option("--scene", options->scene_path, "Scene file (see docs/virtual-cabinet.md)")
+      ->required()
+      ->check(CLI::ExistingFile);
   render->add_option("--out", options->out, "Output directory")->required();
-  render->add_option("--frame", options->frame, "Frame index of the sweep (default: the middle)")->check(CLI::NonNegativeNumber);
-  render->add_option("--time", options->time, "Slide time in seconds (overrides --frame)")->check(CLI::NonNegativeNumber);
+  render->add_option("--frame", options->frame, "Frame index of the sweep (default: the middle)")
+      ->check(CLI::NonNegativeNumber);
+  render->add_option("--time", options->time, "Slide time in seconds (overrides --frame)")
+      ->check(CLI::NonNegativeNumber);
   render->add_option("--camera", options->camera, "Only this camera (by name)");
-  render->add_flag("--no-lasers", options->no_lasers, "Lasers off (e.g. a calibration target frame)");
-  render->add_flag("--no-noise", options->no_noise, "Noise-free sensor (no shot/read noise, no speckle)");
+  render->add_flag("--no-lasers", options->no_lasers,
+                   "Lasers off (e.g. a calibration target frame)");
+  render->add_flag("--no-noise", options->no_noise,
+                   "Noise-free sensor (no shot/read noise, no speckle)");
   render->add_flag("--json", options->json, "Machine-readable output");
   render->callback([options] { Render(*options); });
 
-  auto* scan = sim->add_subcommand("scan", "Render the frames of a whole sweep, per camera, with sweep.json and the true calibration");
-  scan->add_option("--scene", options->scene_path, "Scene file")->required()->check(CLI::ExistingFile);
+  auto* scan = sim->add_subcommand(
+      "scan",
+      "Render the frames of a whole sweep, per camera, with sweep.json and the true calibration");
+  scan->add_option("--scene", options->scene_path, "Scene file")
+      ->required()
+      ->check(CLI::ExistingFile);
   scan->add_option("--out", options->out, "Output directory")->required();
-  scan->add_option("--frames", options->frames, "Render only the first N frames")->check(CLI::PositiveNumber);
+  scan->add_option("--frames", options->frames, "Render only the first N frames")
+      ->check(CLI::PositiveNumber);
   scan->add_option("--camera", options->camera, "Only this camera (by name)");
-  scan->add_flag("--truth", options->truth, "Also write <camera>/truth.csv (stripe centres per column)");
+  scan->add_flag("--truth", options->truth,
+                 "Also write <camera>/truth.csv (stripe centres per column)");
   scan->add_flag("--no-noise", options->no_noise, "Noise-free sensor");
-  scan->add_option("--contact-sheet", options->contact_sheet, "Write a PNG with 12 frames per camera");
+  scan->add_option("--contact-sheet", options->contact_sheet,
+                   "Write a PNG with 12 frames per camera");
   scan->add_flag("--json", options->json, "Machine-readable output");
   scan->callback([options] { Scan(*options); });
 }

@@ -1,0 +1,387 @@
+#include "boards/virtual/renderer.h"
+
+#include <cmath>
+#include <map>
+#include <memory>
+
+#include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
+#include <opencv2/aruco.hpp>
+#include <opencv2/core.hpp>
+
+namespace mirrorscan::virtual_cabinet {
+namespace {
+
+std::string ScenePath(const std::string& name) {
+  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
+}
+
+// Renderers cache per-camera work; share them across tests.
+const Renderer& SharedRenderer(const std::string& name, bool noise = true) {
+  static std::map<std::string, std::unique_ptr<Renderer>> renderers;
+  const std::string key = name + (noise ? "" : "/noise-free");
+  auto& r = renderers[key];
+  if (!r) {
+    Scene scene = Scene::Load(ScenePath(name));
+    scene.sensor.noise = noise;
+    r = std::make_unique<Renderer>(scene);
+  }
+  return *r;
+}
+
+cv::Mat ToMat(const GrayImage& image) {
+  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data()))
+      .clone();
+}
+
+Eigen::Vector3d Reflect(const Scene& scene, View view, Eigen::Vector3d point) {
+  const auto path = MirrorPath(view);
+  for (auto it = path.rbegin(); it != path.rend(); ++it)
+    point = scene.mirrors[*it].plane.ReflectPoint(point);
+  return point;
+}
+
+double PointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  // Distance to the plane when the projection falls inside, else to the nearest edge.
+  const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+  const Eigen::Vector3d q = p - n.dot(p - a) * n;
+  const bool inside = n.dot((b - a).cross(q - a)) >= 0 && n.dot((c - b).cross(q - b)) >= 0 &&
+                      n.dot((a - c).cross(q - c)) >= 0;
+  if (inside) return std::abs(n.dot(p - a));
+  auto segment = [&](const Eigen::Vector3d& x, const Eigen::Vector3d& y) {
+    const double t = std::clamp((p - x).dot(y - x) / (y - x).squaredNorm(), 0.0, 1.0);
+    return (p - (x + t * (y - x))).norm();
+  };
+  return std::min({segment(a, b), segment(b, c), segment(c, a)});
+}
+
+// The cuboid's box from its metadata: signed distance to its surface.
+double BoxDistance(const Scene& scene, const Eigen::Vector3d& p) {
+  const auto& m = scene.subject.metadata;
+  const Eigen::Vector3d center(m["center_mm"][0], m["center_mm"][1], m["center_mm"][2]);
+  const Eigen::Vector3d half =
+      0.5 * Eigen::Vector3d(m["size_mm"][0], m["size_mm"][1], m["size_mm"][2]);
+  const double yaw = m.value("yaw_deg", 0.0) * M_PI / 180.0;
+  const Eigen::Vector3d local = Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()) * (p - center);
+  const Eigen::Vector3d q = local.cwiseAbs() - half;
+  return q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
+}
+
+TEST(RendererTest, TruthPointsLieOnLaserPlaneAndSurfaceAndProjectToTheirPixel) {
+  const Renderer& renderer = SharedRenderer("cuboid");
+  const Scene& scene = renderer.scene();
+  const double t = 6.3;  // laser 2 near the cuboid's middle (z ≈ 1295 mm)
+  const auto peaks = renderer.Truth(0, t);
+  std::map<View, int> on_box;
+  const TriangleMesh& mesh = scene.subject.mesh;
+  for (const TruthPeak& p : peaks) {
+    const Plane plane = scene.lasers.PlaneAt(p.laser, t);
+    ASSERT_LT(std::abs(plane.SignedDistance(p.point_in_world)), 1e-6);
+    const auto pixel =
+        scene.cameras[0].camera.ProjectWorld(Reflect(scene, p.view, p.point_in_world));
+    ASSERT_TRUE(pixel);
+    ASSERT_LT(std::abs(pixel->x() - p.u), 0.01);
+    ASSERT_LT(std::abs(pixel->y() - p.v), 0.01);
+    if (p.material == Material::kPanel) {
+      const int side = p.point_in_world.x() < 0 ? 0 : 1;
+      EXPECT_LT(std::abs(scene.panels[side].plane.SignedDistance(p.point_in_world)), 1e-6);
+    } else if (p.material == Material::kSubject) {
+      double nearest = 1e9;
+      for (const auto& tri : mesh.triangles) {
+        nearest =
+            std::min(nearest, PointTriangleDistance(p.point_in_world, mesh.vertices[tri[0]],
+                                                    mesh.vertices[tri[1]], mesh.vertices[tri[2]]));
+      }
+      ASSERT_LT(nearest, 1e-3);
+      if (std::abs(BoxDistance(scene, p.point_in_world)) < 1.0) {
+        EXPECT_LT(std::abs(BoxDistance(scene, p.point_in_world)), 1e-3);
+        ++on_box[p.view];
+      }
+    }
+  }
+  // The laser ring: the cuboid is seen lit directly and through both mirrors.
+  EXPECT_GT(on_box[View::kCenter], 100);
+  EXPECT_GT(on_box[View::kLeft], 50);
+  EXPECT_GT(on_box[View::kRight], 50);
+}
+
+struct DetectedMarker {
+  int id;
+  std::array<cv::Point2f, 4> corners;
+};
+
+std::vector<DetectedMarker> Detect(const cv::Mat& image, bool flip) {
+  cv::Mat input = image;
+  if (flip) cv::flip(image, input = cv::Mat(), 1);  // a new buffer: never flip `image` in place
+  auto dictionary = cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50);
+  auto parameters = cv::aruco::DetectorParameters::create();
+  parameters->cornerRefinementMethod = cv::aruco::CORNER_REFINE_SUBPIX;
+  parameters->cornerRefinementWinSize = 4;
+  parameters->cornerRefinementMinAccuracy = 0.001;
+  parameters->cornerRefinementMaxIterations = 100;
+  std::vector<std::vector<cv::Point2f>> corners;
+  std::vector<int> ids;
+  cv::aruco::detectMarkers(input, dictionary, corners, ids, parameters);
+  std::vector<DetectedMarker> result;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    DetectedMarker m{ids[i], {}};
+    for (int c = 0; c < 4; ++c) {
+      cv::Point2f p = corners[i][c];
+      if (flip) p.x = static_cast<float>(image.cols - 1) - p.x;
+      m.corners[c] = p;
+    }
+    result.push_back(m);
+  }
+  return result;
+}
+
+// How far a marker's rendered corners lie from where projection puts them. Each border
+// is measured in the image independently of any corner detector (whose corners are biased
+// on blurred images): per image column or row across it, the centroid of the intensity
+// differences over the blurred step, compared with where the projected border crosses
+// that column or row. A corner's displacement follows from the mean offsets of its two
+// borders. nullopt when a border runs too close to the image edge.
+std::optional<std::array<Eigen::Vector2d, 4>> CornerDisplacements(
+    const cv::Mat& image, const Scene& scene, int camera, View view,
+    const std::array<Eigen::Vector3d, 4>& corners) {
+  const Camera& cam = scene.cameras[camera].camera;
+  auto project = [&](const Eigen::Vector3d& p) {
+    return *cam.ProjectWorld(Reflect(scene, view, p));
+  };
+  std::array<double, 4> offsets;           // mean offset along each border's image normal
+  std::array<Eigen::Vector2d, 4> normals;  // unit image normals of the borders
+  for (int edge = 0; edge < 4; ++edge) {
+    const Eigen::Vector3d& a3 = corners[edge];
+    const Eigen::Vector3d& b3 = corners[(edge + 1) % 4];
+    const Eigen::Vector2d a = project(a3), b = project(b3);
+    const bool along_u = std::abs(b.x() - a.x()) > std::abs(b.y() - a.y());
+    const int major = along_u ? 0 : 1, minor = 1 - major;
+    const Eigen::Vector2d direction = (b - a).normalized();
+    normals[edge] = Eigen::Vector2d(-direction.y(), direction.x());
+    const double lo = std::min(a[major], b[major]), hi = std::max(a[major], b[major]);
+    double sum = 0;
+    int n = 0;
+    for (int m = static_cast<int>(std::ceil(lo + 0.15 * (hi - lo))); m <= hi - 0.15 * (hi - lo);
+         ++m) {
+      // Where the projected border (curved by distortion) crosses this column or row.
+      double f_lo = 0, f_hi = 1;
+      for (int i = 0; i < 50; ++i) {
+        const double f = 0.5 * (f_lo + f_hi);
+        ((project(a3 + f * (b3 - a3))[major] < m) == (b[major] > a[major]) ? f_lo : f_hi) = f;
+      }
+      const double predicted = project(a3 + f_lo * (b3 - a3))[minor];
+      const int c0 = static_cast<int>(std::lround(predicted));
+      if (c0 < 6 || c0 > (along_u ? image.rows : image.cols) - 7) return std::nullopt;
+      auto at = [&](int c) {
+        return static_cast<double>(along_u ? image.at<uint8_t>(c, m) : image.at<uint8_t>(m, c));
+      };
+      double weight = 0, moment = 0;
+      for (int c = c0 - 4; c < c0 + 4; ++c) {
+        weight += at(c + 1) - at(c);
+        moment += (at(c + 1) - at(c)) * (c + 0.5);
+      }
+      if (std::abs(weight) < 20) continue;
+      sum += moment / weight - predicted;
+      ++n;
+    }
+    if (n < 10) return std::nullopt;
+    // An offset along the minor axis moves the border by that times |normal[minor]|.
+    offsets[edge] = sum / n * std::abs(normals[edge][minor]) * (normals[edge][minor] > 0 ? 1 : -1);
+  }
+  std::array<Eigen::Vector2d, 4> displacements;
+  for (int c = 0; c < 4; ++c) {
+    const int before = (c + 3) % 4;
+    Eigen::Matrix2d n;
+    n.row(0) = normals[before].transpose();
+    n.row(1) = normals[c].transpose();
+    displacements[c] = n.inverse() * Eigen::Vector2d(offsets[before], offsets[c]);
+  }
+  return displacements;
+}
+
+TEST(RendererTest, MarkerCornersRenderWhereProjectionPredicts) {
+  const Renderer& renderer = SharedRenderer("calibration", /*noise=*/false);
+  const Scene& scene = renderer.scene();
+  ASSERT_TRUE(scene.target);
+  for (int camera = 0; camera < static_cast<int>(scene.cameras.size()); ++camera) {
+    const cv::Mat image = ToMat(renderer.RenderFrame(camera, 0.0, 0, /*lasers_on=*/false));
+    std::map<View, std::vector<double>> errors;
+    for (bool flip : {false, true}) {
+      for (const DetectedMarker& m : Detect(image, flip)) {
+        cv::Point2f middle(0, 0);
+        for (const auto& c : m.corners) middle += 0.25f * c;
+        const View seen_in = renderer.TracePixel(camera, {middle.x, middle.y}).view;
+        // A whole-image flip also mirrors the direct view, where a mirrored marker may
+        // decode as another id: only mirror regions are read flipped.
+        if (flip != (seen_in == View::kLeft || seen_in == View::kRight)) continue;
+        // Panel 0 faces the camera; panel 1 is seen in the left mirror, panel 2 in the right.
+        const int panel = m.id / 16;
+        const View view = panel == 0 ? View::kCenter : panel == 1 ? View::kLeft : View::kRight;
+        ASSERT_EQ(seen_in, view) << "marker " << m.id << " found in the wrong view";
+        const auto& truth = scene.target->markers()[m.id].corners;
+        // The detector's corners only locate the marker (they sit ~0.2 px inside on a
+        // blurred image); the borders are then measured against projection.
+        for (int c = 0; c < 4; ++c) {
+          const auto expected =
+              scene.cameras[camera].camera.ProjectWorld(Reflect(scene, view, truth[c]));
+          ASSERT_TRUE(expected);
+          ASSERT_LT(std::hypot(m.corners[c].x - expected->x(), m.corners[c].y - expected->y()),
+                    1.0);
+        }
+        const auto displacements = CornerDisplacements(image, scene, camera, view, truth);
+        if (!displacements) continue;  // too close to the image border to measure
+        for (const auto& d : *displacements) errors[view].push_back(d.norm());
+      }
+    }
+    for (View view : {View::kCenter, View::kLeft, View::kRight}) {
+      const auto& e = errors[view];
+      ASSERT_GE(e.size(), 4u * 4) << "camera " << camera << " view " << ViewName(view);
+      double sum2 = 0;
+      for (double x : e) sum2 += x * x;
+      const double rms = std::sqrt(sum2 / e.size());
+      EXPECT_LT(*std::max_element(e.begin(), e.end()), 0.05)
+          << "camera " << camera << " view " << ViewName(view);
+      std::printf("camera %d view %-6s: %zu corners, RMS %.4f px, max %.4f px\n", camera,
+                  ViewName(view), e.size(), rms, *std::max_element(e.begin(), e.end()));
+    }
+  }
+}
+
+TEST(RendererTest, ViewThroughAMirrorIsMirrorImaged) {
+  const Renderer& renderer = SharedRenderer("calibration", /*noise=*/false);
+  const cv::Mat image = ToMat(renderer.RenderFrame(0, 0.0, 0, /*lasers_on=*/false));
+  // Markers of the back panels read correctly (right id, where that marker is) only in
+  // the flipped image. (Unflipped, a mirrored marker can decode as some other id.)
+  const Scene& scene = renderer.scene();
+  std::map<std::pair<bool, View>, int> readable;  // (flipped, view) -> markers read correctly
+  for (bool flip : {false, true}) {
+    for (const DetectedMarker& m : Detect(image, flip)) {
+      const View view = m.id / 16 == 1   ? View::kLeft
+                        : m.id / 16 == 2 ? View::kRight
+                                         : View::kCenter;
+      if (view == View::kCenter) continue;
+      bool in_place = true;
+      for (int c = 0; c < 4; ++c) {
+        const auto expected = scene.cameras[0].camera.ProjectWorld(
+            Reflect(scene, view, scene.target->markers()[m.id].corners[c]));
+        in_place = in_place && expected &&
+                   std::hypot(m.corners[c].x - expected->x(), m.corners[c].y - expected->y()) < 1.0;
+      }
+      if (in_place) ++readable[{flip, view}];
+    }
+  }
+  EXPECT_EQ((readable[{false, View::kLeft}]), 0);
+  EXPECT_EQ((readable[{false, View::kRight}]), 0);
+  EXPECT_GE((readable[{true, View::kLeft}]), 4);
+  EXPECT_GE((readable[{true, View::kRight}]), 4);
+  // And geometrically: moving right along an image row in the left mirror, the surface
+  // point seen moves the other way along the target's back-left panel.
+  const auto& panel = renderer.scene().target->panels()[1];
+  const auto& corners = renderer.scene().target->markers()[24].corners;
+  const Eigen::Vector3d middle = 0.25 * (corners[0] + corners[1] + corners[2] + corners[3]);
+  const auto pixel = renderer.scene().cameras[0].camera.ProjectWorld(
+      renderer.scene().mirrors[0].plane.ReflectPoint(middle));
+  ASSERT_TRUE(pixel);
+  const SurfaceSample a = renderer.TracePixel(0, *pixel),
+                      b = renderer.TracePixel(0, *pixel + Eigen::Vector2d(5, 0));
+  ASSERT_EQ(a.view, View::kLeft);
+  ASSERT_EQ(b.view, View::kLeft);
+  EXPECT_LT((b.hit.point - a.hit.point).dot(panel.right), 0);
+}
+
+TEST(RendererTest, NoiseFreeStripeCentroidMatchesTruthRow) {
+  const Renderer& renderer = SharedRenderer("cuboid", /*noise=*/false);
+  double sum2 = 0, sum = 0;
+  int n = 0;
+  for (double t : {5.5, 6.3, 7.0}) {  // stripes across the cuboid's faces
+    const cv::Mat on = ToMat(renderer.RenderFrame(0, t, 7, true));
+    const cv::Mat off = ToMat(renderer.RenderFrame(0, t, 7, false));
+    const auto peaks = renderer.Truth(0, t);
+    std::map<int, std::vector<double>> rows_by_column;
+    for (const auto& p : peaks) rows_by_column[p.u].push_back(p.v);
+    for (const auto& p : peaks) {
+      // Planar faces only: on a thin curved tube the stripe bends within one column, so a
+      // column's centroid and the curve's crossing differ by geometry, not by rendering.
+      if (p.material != Material::kSubject || p.peak_dn < 60 ||
+          std::abs(BoxDistance(renderer.scene(), p.point_in_world)) > 1e-3) {
+        continue;
+      }
+      bool isolated = true;
+      for (double v : rows_by_column[p.u])
+        isolated = isolated && (v == p.v || std::abs(v - p.v) > 10);
+      const int v0 = static_cast<int>(std::lround(p.v));
+      if (!isolated || v0 < 5 || v0 >= on.rows - 5) continue;
+      double weight = 0, moment = 0;
+      for (int v = v0 - 4; v <= v0 + 4; ++v) {
+        const double value = on.at<uint8_t>(v, p.u) - off.at<uint8_t>(v, p.u);
+        weight += value;
+        moment += value * v;
+      }
+      if (weight <= 0) continue;
+      const double error = moment / weight - p.v;
+      sum += error;
+      sum2 += error * error;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 500);
+  const double rms = std::sqrt(sum2 / n);
+  std::printf("stripe centroid vs truth over %d columns: RMS %.4f px, bias %.4f px\n", n, rms,
+              sum / n);
+  EXPECT_LT(rms, 0.05);
+  EXPECT_LT(std::abs(sum / n), 0.01);
+}
+
+TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
+  const Renderer& renderer = SharedRenderer("mannequin", /*noise=*/false);
+  const Scene& scene = renderer.scene();
+  int hidden = 0, lit = 0;
+  for (int camera = 0; camera < 2; ++camera) {
+    for (double t : {2.0, 4.0, 6.0, 8.0}) {
+      const cv::Mat on = ToMat(renderer.RenderFrame(camera, t, 3, true));
+      const cv::Mat off = ToMat(renderer.RenderFrame(camera, t, 3, false));
+      for (int v = 2; v < on.rows - 2; ++v) {
+        for (int u = 2; u < on.cols - 2; ++u) {
+          const SurfaceSample s = renderer.TracePixel(camera, {u, v});
+          if (s.view == View::kNone) continue;
+          for (int k = 0; k < scene.lasers.count; ++k) {
+            if (std::abs(scene.lasers.PlaneAt(k, t).SignedDistance(s.hit.point)) > 0.5) continue;
+            if (renderer.LaserIrradiance(s.hit.point, s.hit.normal) > 0) {
+              ++lit;
+              EXPECT_GT(on.at<uint8_t>(v, u), off.at<uint8_t>(v, u));
+              continue;
+            }
+            // Only where no lit neighbour can blur light across.
+            bool lit_nearby = false;
+            for (int dv = -2; dv <= 2 && !lit_nearby; ++dv) {
+              for (int du = -2; du <= 2 && !lit_nearby; ++du) {
+                lit_nearby = (dv != 0 || du != 0) &&
+                             on.at<uint8_t>(v + dv, u + du) != off.at<uint8_t>(v + dv, u + du);
+              }
+            }
+            if (lit_nearby) continue;
+            ++hidden;
+            EXPECT_EQ(on.at<uint8_t>(v, u), off.at<uint8_t>(v, u))
+                << "pixel " << u << "," << v << " lit though hidden";
+          }
+        }
+      }
+    }
+  }
+  std::printf("on-plane pixels: %d reached by a laser, %d hidden from it\n", lit, hidden);
+  EXPECT_GT(hidden, 20);
+  EXPECT_GT(lit, 1000);
+}
+
+TEST(RendererTest, SameSeedSameFrameOtherFrameOtherNoise) {
+  const Renderer& renderer = SharedRenderer("cylinder");
+  const auto a = renderer.RenderFrame(0, 5.0, 150);
+  const auto b = renderer.RenderFrame(0, 5.0, 150);
+  const auto c = renderer.RenderFrame(0, 5.0, 151);
+  EXPECT_EQ(a.pixels, b.pixels);
+  EXPECT_NE(a.pixels, c.pixels);
+}
+
+}  // namespace
+}  // namespace mirrorscan::virtual_cabinet
