@@ -18,8 +18,8 @@ nlohmann::json DefaultCameras() {
   // Both look down so that the laser planes they triangulate are never seen edge-on:
   // the upper camera serves heights above ~950 mm, the lower one those below.
   return nlohmann::json::array(
-      {{{"name", "upper"}, {"position_mm", {0, -2300, 2250}}, {"look_at_mm", {0, 300, 1350}}},
-       {{"name", "lower"}, {"position_mm", {0, -2300, 1450}}, {"look_at_mm", {0, 300, 450}}}});
+      {{{"name", "upper"}, {"position_mm", {0, -1800, 2150}}, {"look_at_mm", {0, 300, 1350}}},
+       {{"name", "lower"}, {"position_mm", {0, -1800, 1350}}, {"look_at_mm", {0, 300, 450}}}});
 }
 
 SceneCamera ParseCamera(const JsonReader& r) {
@@ -232,7 +232,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   sr.AllowOnly({"ambient_dn", "laser_dn", "read_noise_dn", "electrons_per_dn", "speckle_contrast",
                 "blur_px", "noise"});
   Sensor& sensor = scene.sensor;
-  sensor.ambient_dn = sr.Number("ambient_dn", 25.0, 0.0, 255.0);
+  sensor.ambient_dn = sr.Number("ambient_dn", 40.0, 0.0, 255.0);
   sensor.laser_dn = sr.Number("laser_dn", 220.0, 0.0, 1e5);
   sensor.read_noise_dn = sr.Number("read_noise_dn", 2.0, 0.0, 100.0);
   sensor.electrons_per_dn = sr.Number("electrons_per_dn", 40.0, 0.01, 1e6);
