@@ -367,6 +367,21 @@ TEST(ScanFormatTest, ReportsFooterStatusTrailingDataAndUnknownRecords) {
   EXPECT_EQ(ReadScan(sink.bytes()).report.message,
             "complete: 1 frames, 0 peaks; footer status \"aborted\": button pressed");
 
+  // Untrusted footer strings are shortened at a UTF-8 code point boundary.
+  VectorSink long_sink;
+  ScanWriter long_writer(long_sink);
+  long_writer.Begin(kHeader);
+  footer["reason"] = std::string(5, 'x') + [] {
+    std::string s;
+    for (int i = 0; i < 1000; ++i) s += "\u00e9";
+    return s;
+  }();
+  long_writer.Finish(footer);
+  const std::string long_message = ReadScan(long_sink.bytes()).report.message;
+  EXPECT_LT(long_message.size(), 300u);
+  EXPECT_EQ(long_message.substr(long_message.size() - 3), "...");
+  EXPECT_NO_THROW(nlohmann::json(long_message).dump());
+
   Bytes trailing = sink.bytes();
   const Bytes extra = EncodeFrame(FrameRecord{});
   trailing.insert(trailing.end(), extra.begin(), extra.end());
@@ -414,7 +429,7 @@ TEST(ScanFormatTest, WriterRefusesToAppendAfterASinkError) {
   EXPECT_EQ(sink.calls, 2);
 }
 
-class ScanFileTest : public ::testing::Test {
+class ScanFormatFileTest : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ =
@@ -425,7 +440,7 @@ class ScanFileTest : public ::testing::Test {
   std::filesystem::path dir_;
 };
 
-TEST_F(ScanFileTest, WritesAndReadsFiles) {
+TEST_F(ScanFormatFileTest, WritesAndReadsFiles) {
   const auto path = dir_ / "a.mscan";
   std::mt19937 rng(3);
   {
@@ -445,7 +460,7 @@ TEST_F(ScanFileTest, WritesAndReadsFiles) {
   EXPECT_EQ(ReadScanFile(path).report.frames, 0u);
 }
 
-TEST_F(ScanFileTest, AbandonedWriterLeavesAReadablePrefix) {
+TEST_F(ScanFormatFileTest, AbandonedWriterLeavesAReadablePrefix) {
   const auto path = dir_ / "crash.mscan";
   {
     ScanFileWriter writer(path);
@@ -458,7 +473,7 @@ TEST_F(ScanFileTest, AbandonedWriterLeavesAReadablePrefix) {
   EXPECT_NE(a.report.message.find("no footer record"), std::string::npos);
 }
 
-TEST_F(ScanFileTest, ErrorsNameTheFile) {
+TEST_F(ScanFormatFileTest, ErrorsNameTheFile) {
   const auto missing = dir_ / "missing.mscan";
   try {
     ReadScanFile(missing);

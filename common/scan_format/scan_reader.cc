@@ -118,6 +118,17 @@ std::string ScanStreamReader::PendingDescription() const {
 
 namespace {
 
+// Footer strings are untrusted and may be megabytes long; the message stays one line's worth
+// and valid UTF-8 (the parser already rejected invalid UTF-8, so cut at a code point).
+std::string Abbreviate(std::string text) {
+  constexpr size_t kMax = 200;
+  if (text.size() <= kMax) return text;
+  size_t cut = kMax;
+  while (cut > 0 && (static_cast<uint8_t>(text[cut]) & 0xC0) == 0x80) --cut;
+  text.resize(cut);
+  return text + "...";
+}
+
 std::optional<nlohmann::json> ParseObject(const std::vector<uint8_t>& payload) {
   // No exceptions, so malformed JSON is just "not an object". nlohmann 3.11 parses and
   // destroys iteratively, so deep nesting cannot overflow the stack.
@@ -236,9 +247,9 @@ ScanArchive ReadScan(std::span<const uint8_t> bytes) {
     const nlohmann::json& footer = *archive.footer;
     if (auto status = footer.find("status");
         status != footer.end() && status->is_string() && *status != "complete") {
-      report.message += "; footer status \"" + status->get<std::string>() + "\"";
+      report.message += "; footer status \"" + Abbreviate(status->get<std::string>()) + "\"";
       if (auto reason = footer.find("reason"); reason != footer.end() && reason->is_string()) {
-        report.message += ": " + reason->get<std::string>();
+        report.message += ": " + Abbreviate(reason->get<std::string>());
       }
     }
   } else {
