@@ -27,41 +27,47 @@ constexpr NamedEstimator kEstimatorNames[] = {
     {PeakEstimator::kParabola3, "parabola3"},
 };
 
-// Column profile around one candidate, in sample coordinates (index i = row lo + i).
+// Column profile around one candidate, in sample coordinates (index i = row lo + i),
+// read on demand straight from the image column.
 struct Profile {
-  const float* s;    // Background-subtracted samples.
-  const float* raw;  // Raw samples.
+  const uint8_t* col;  // Row lo of the column.
+  ptrdiff_t stride;
+  float b0, slope;  // Background at sample i: b0 + slope * i.
   int n;
   int first, last;     // Plateau (first == last unless the top is flat).
   int win_lo, win_hi;  // Estimator window (inclusive), valley-clipped.
   float threshold;
   bool flat_top;  // Saturated or a plateau of >= 3 samples: no 3-point fit.
+  float Raw(int i) const { return static_cast<float>(col[i * stride]); }
+  // Background-subtracted sample.
+  float S(int i) const { return Raw(i) - (b0 + slope * static_cast<float>(i)); }
 };
 
-float CentreOfMass(const float* w, int lo, int hi) {
-  double sum = 0, moment = 0;
+template <bool kRaw>
+float CentreOfMass(const Profile& p, int lo, int hi) {
+  float sum = 0, moment = 0;
   for (int i = lo; i <= hi; ++i) {
-    const double wi = std::max(0.0f, w[i]);
+    const float wi = kRaw ? p.Raw(i) : std::max(0.0f, p.S(i));
     sum += wi;
-    moment += wi * i;
+    moment += wi * static_cast<float>(i - lo);
   }
-  return sum > 0 ? static_cast<float>(moment / sum) : kNaN;
+  return sum > 0 ? static_cast<float>(lo) + moment / sum : kNaN;
 }
 
-float WindowedCom(const Profile& p) { return CentreOfMass(p.s, p.win_lo, p.win_hi); }
+float WindowedCom(const Profile& p) { return CentreOfMass<false>(p, p.win_lo, p.win_hi); }
 
 // The paper: intensity-weighted mean row of the contiguous bright pixels (raw weights).
 float ThresholdedCom(const Profile& p) {
   int lo = p.first, hi = p.last;
-  while (lo > p.win_lo && p.s[lo - 1] >= p.threshold) --lo;
-  while (hi < p.win_hi && p.s[hi + 1] >= p.threshold) ++hi;
-  return CentreOfMass(p.raw, lo, hi);
+  while (lo > p.win_lo && p.S(lo - 1) >= p.threshold) --lo;
+  while (hi < p.win_hi && p.S(hi + 1) >= p.threshold) ++hi;
+  return CentreOfMass<true>(p, lo, hi);
 }
 
 float Parabola3(const Profile& p) {
   const int k = p.first;
   if (k < 1 || k + 1 >= p.n) return kNaN;
-  const float a = p.s[k - 1], b = p.s[k], c = p.s[k + 1];
+  const float a = p.S(k - 1), b = p.S(k), c = p.S(k + 1);
   const float den = a - 2 * b + c;
   if (!(den < 0)) return kNaN;
   return k + 0.5f * (a - c) / den;
@@ -70,18 +76,18 @@ float Parabola3(const Profile& p) {
 float Gaussian3(const Profile& p) {
   const int k = p.first;
   if (k < 1 || k + 1 >= p.n) return kNaN;
-  const float a = p.s[k - 1], b = p.s[k], c = p.s[k + 1];
+  const float a = p.S(k - 1), b = p.S(k), c = p.S(k + 1);
   if (!(a > 0 && b > 0 && c > 0)) return Parabola3(p);
   // ln a - 2 ln b + ln c = ln(a c / b^2); ln a - ln c = ln(a / c).
   const float den = std::log((a * c) / (b * b));
   if (!(den < 0)) return kNaN;
-  return k + 0.5f * std::log(a / c) / den;
+  return static_cast<float>(k) + 0.5f * std::log(a / c) / den;
 }
 
 float BlaisRioux4(const Profile& p) {
   const int k = p.first;
   if (k < 3 || k + 3 >= p.n) return kNaN;
-  auto g = [&](int i) { return p.s[i + 2] + p.s[i + 1] - p.s[i - 1] - p.s[i - 2]; };
+  auto g = [&](int i) { return p.S(i + 2) + p.S(i + 1) - p.S(i - 1) - p.S(i - 2); };
   // g > 0 left of the peak, < 0 right of it; interpolate the zero crossing.
   const float g0 = g(k);
   if (g0 >= 0) {
@@ -235,11 +241,34 @@ std::string PeakExtractor::SimdTarget() { return peaks_internal::SimdTargetName(
 
 namespace {
 
+// Half-maximum crossings left and right of the top [first, last], linearly interpolated;
+// false if a crossing is not inside the samples.
+template <typename S>
+bool HalfMaxCrossings(const S& s, int first, int last, int n, float half, float* xl, float* xr) {
+  int il = first;
+  float s_in = s(il), s_out = s(il - 1);  // first >= 1: candidates are never on row y0.
+  while (s_out > half) {
+    if (--il == 0) return false;
+    s_in = s_out;
+    s_out = s(il - 1);
+  }
+  *xl = static_cast<float>(il - 1) + (half - s_out) / (s_in - s_out);
+  int ir = last;
+  if (ir >= n - 1) return false;
+  s_in = s(ir);
+  s_out = s(ir + 1);
+  while (s_out > half) {
+    if (++ir == n - 1) return false;
+    s_in = s_out;
+    s_out = s(ir + 1);
+  }
+  *xr = static_cast<float>(ir) + (s_in - half) / (s_in - s_out);
+  return true;
+}
+
 // Refines one candidate (u, r0) into a peak; false if it is no laser peak. A pure function
 // of the image and the candidate, so the order candidates arrive in does not matter.
-// `s` and `raw` have room for 4 * window + 8 samples.
-bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, int r0, float* s,
-               float* raw, Peak* peak) {
+bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, int r0, Peak* peak) {
   for (const PixelRect& e : params.excluded)
     if (e.Contains(u, r0)) return false;
   const int w = params.window;
@@ -276,46 +305,53 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   const int lo = std::max(r0 - w, search.y0);
   const int hi = std::min(r1 + w, search.y1 - 1);
   const int n = hi - lo + 1;
-  // Background at row lo + i is b0 + slope * i.
-  const float b0 = base + (linear ? slope * (static_cast<float>(lo) - x_left) : 0.0f);
-  const uint8_t* p = column + lo * stride;
-  for (int i = 0; i < n; ++i, p += stride) {
-    raw[i] = static_cast<float>(*p);
-    s[i] = raw[i] - (b0 + slope * static_cast<float>(i));
-  }
   const int first = r0 - lo, last = r1 - lo;
+  const bool saturated = top >= params.saturation_level;
+  Profile profile{column + lo * stride,
+                  stride,
+                  base + (linear ? slope * (static_cast<float>(lo) - x_left) : 0.0f),
+                  slope,
+                  n,
+                  first,
+                  last,
+                  first,
+                  last,
+                  thr,
+                  saturated || last - first >= 2};
+  auto s = [&profile](int i) { return profile.S(i); };
   const int mid = (first + last) / 2;
-  const float amplitude = (first + last) % 2 == 0 ? s[mid] : 0.5f * (s[mid] + s[mid + 1]);
+  const float amplitude = (first + last) % 2 == 0 ? s(mid) : 0.5f * (s(mid) + s(mid + 1));
   if (amplitude < thr) return false;
   // Full width at half maximum, linear interpolation of the crossings.
   const float half = 0.5f * amplitude;
-  int il = first;
-  while (il > 0 && s[il - 1] > half) --il;
-  if (il == 0) return false;
-  int ir = last;
-  while (ir < n - 1 && s[ir + 1] > half) ++ir;
-  if (ir == n - 1) return false;
-  const float xl = static_cast<float>(il - 1) + (half - s[il - 1]) / (s[il] - s[il - 1]);
-  const float xr = static_cast<float>(ir) + (s[ir] - half) / (s[ir] - s[ir + 1]);
+  float xl, xr;
+  if (!HalfMaxCrossings(s, first, last, n, half, &xl, &xr)) return false;
   const float width = xr - xl;
   if (width < params.min_width_px || width > params.max_width_px) return false;
-  // Estimator window: ~ +-2.7 sigma around the top, clipped where the signal rises
-  // again (a neighbouring line) by more than the noise allowance.
-  const int k = std::min(w, static_cast<int>(std::ceil(1.15f * width)));
-  const float rise = 0.25f * thr + 0.05f * amplitude;
-  int wl = first, wr = last;
-  float low = s[wl];
-  while (wl > 0 && wl > first - k && s[wl - 1] <= low + rise) {
-    --wl;
-    low = std::min(low, s[wl]);
+  if (profile.flat_top || params.estimator == PeakEstimator::kWindowedCom ||
+      params.estimator == PeakEstimator::kThresholdedCom) {
+    // Estimator window: ~ +-2.7 sigma around the top, clipped where the signal rises
+    // again (a neighbouring line) by more than the noise allowance.
+    const int k = std::min(w, static_cast<int>(std::ceil(1.15f * width)));
+    const float rise = 0.25f * thr + 0.05f * amplitude;
+    int wl = first, wr = last;
+    float low = s(wl);
+    while (wl > 0 && wl > first - k) {
+      const float next = s(wl - 1);
+      if (next > low + rise) break;
+      --wl;
+      low = std::min(low, next);
+    }
+    low = s(wr);
+    while (wr < n - 1 && wr < last + k) {
+      const float next = s(wr + 1);
+      if (next > low + rise) break;
+      ++wr;
+      low = std::min(low, next);
+    }
+    profile.win_lo = wl;
+    profile.win_hi = wr;
   }
-  low = s[wr];
-  while (wr < n - 1 && wr < last + k && s[wr + 1] <= low + rise) {
-    ++wr;
-    low = std::min(low, s[wr]);
-  }
-  const bool saturated = top >= params.saturation_level;
-  const Profile profile{s, raw, n, first, last, wl, wr, thr, saturated || last - first >= 2};
   const float t = Estimate(params.estimator, profile);
   if (!std::isfinite(t) || t < static_cast<float>(first) - 1.5f ||
       t > static_cast<float>(last) + 1.5f) {
@@ -330,7 +366,7 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   const float q_amp = amplitude / (amplitude + 2.0f * thr);
   const float q_wid = std::clamp((width - params.min_width_px) / 0.5f, 0.0f, 1.0f) *
                       std::clamp((params.max_width_px - width) / 1.0f, 0.0f, 1.0f);
-  const float q_sym = std::clamp(1.0f - 2.0f * std::abs(0.5f * (xl + xr) - t) / width, 0.0f, 1.0f);
+  const float q_sym = std::clamp(1.0f - std::abs(xl + xr - 2.0f * t) / width, 0.0f, 1.0f);
   peak->score = std::clamp(q_amp * q_wid * q_sym * (saturated ? 0.8f : 1.0f), 0.0f, 1.0f);
   return true;
 }
@@ -352,8 +388,6 @@ struct RowSink {
   const PeakParams* params;
   std::vector<Candidate>* row;
   std::vector<Peak>* peaks;
-  float* s;
-  float* raw;
 };
 
 }  // namespace
@@ -362,7 +396,7 @@ void PeakExtractor::RefineRow(void* ctx) {
   const RowSink& sink = *static_cast<const RowSink*>(ctx);
   Peak peak;
   for (const Candidate& c : *sink.row) {
-    if (RefineOne(*sink.search, *sink.params, c.u, c.v, sink.s, sink.raw, &peak)) {
+    if (RefineOne(*sink.search, *sink.params, c.u, c.v, &peak)) {
       sink.peaks->push_back(peak);
     }
   }
@@ -389,14 +423,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   const Roi roi = ResolveRoi(image, params.roi);
   if (roi.x1 <= roi.x0 || roi.y1 - roi.y0 < 3) return;
   const CandidateSearch search = MakeSearch(image, params, roi);
-  samples_.resize(2 * (4 * static_cast<size_t>(params.window) + 8));
-  RowSink sink{this,
-               &search,
-               &params,
-               &candidates_,
-               &peaks_,
-               samples_.data(),
-               samples_.data() + samples_.size() / 2};
+  RowSink sink{this, &search, &params, &candidates_, &peaks_};
   if (simd) {
     // Rows in order; each row's candidates are refined while its rows are in cache.
     peaks_internal::FindCandidatesSimd(search, &candidates_, &PeakExtractor::RefineRow, &sink);
@@ -428,7 +455,13 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
     Peak* last = out->data() + end;
     begin = end;
     if (first == last) continue;
-    std::sort(first, last, ByRow);
+    // Insertion sort: columns hold a few peaks, nearly always in order already.
+    for (Peak* it = first + 1; it != last; ++it) {
+      const Peak x = *it;
+      Peak* j = it;
+      for (; j != first && ByRow(x, *(j - 1)); --j) *j = *(j - 1);
+      *j = x;
+    }
     Peak* kept = first;
     for (Peak* it = first + 1; it != last; ++it) {
       if (it->v - kept->v < params.min_separation_px) {

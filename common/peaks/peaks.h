@@ -99,7 +99,6 @@ class PeakExtractor {
   std::vector<Candidate> candidates_;  // Of one row (SIMD) or one column (scalar).
   std::vector<Peak> peaks_;            // Refined, before the per-column pass.
   std::vector<uint32_t> column_start_;
-  std::vector<float> samples_;
 };
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
