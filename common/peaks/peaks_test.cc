@@ -1,6 +1,7 @@
 #include "common/peaks/peaks.h"
 
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 #include <cmath>
 #include <cstdio>
@@ -159,6 +160,31 @@ TEST(PeakSimd, SimdEqualsScalarExactly) {
     total += static_cast<int>(pa.size());
   }
   EXPECT_GT(total, 24 * 1000);
+}
+
+// Every Highway target this CPU supports (e.g. AVX3, AVX2, SSE4; SVE2, SVE, NEON).
+TEST(PeakSimd, SimdEqualsScalarOnEveryTarget) {
+  std::mt19937 rng(77);
+  Scene scene;
+  scene.noise_sigma = 3;
+  scene.speckle = 0.2;
+  scene.width = 1000;
+  scene.stripes = synth::RandomStripes(7, scene.height, 20, 600, &rng);
+  const Frame f = synth::Render(scene, 78);
+  PeakParams params;
+  params.threshold_dn = 10;
+  const auto reference = ExtractPeaksScalar(f.view(), params);
+  for (const int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const auto peaks = ExtractPeaks(f.view(), params);
+    std::printf("target %s: %zu peaks\n", hwy::TargetName(target), peaks.size());
+    ASSERT_EQ(peaks.size(), reference.size()) << hwy::TargetName(target);
+    for (size_t k = 0; k < peaks.size(); ++k) {
+      ASSERT_EQ(peaks[k].u, reference[k].u) << hwy::TargetName(target);
+      ASSERT_EQ(peaks[k].v, reference[k].v) << hwy::TargetName(target);
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
 }
 
 TEST(PeakSimd, TinyAndOddImages) {
