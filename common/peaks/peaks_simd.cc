@@ -15,6 +15,19 @@ namespace peaks_internal {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
+// Rounded average (a + b + 1) >> 1 of u8 lanes. Highway 1.0.3's AverageRound on plain SVE
+// (not SVE2) adds in 8 bits and overflows; use the overflow-free identity there.
+template <class D, class V>
+HWY_INLINE V Avg(D d, V a, V b) {
+#if HWY_TARGET == HWY_SVE || HWY_TARGET == HWY_SVE_256
+  (void)d;
+  return hn::Sub(hn::Or(a, b), hn::ShiftRight<1>(hn::Xor(a, b)));
+#else
+  (void)d;
+  return hn::AverageRound(a, b);
+#endif
+}
+
 void FindCandidatesRows(const CandidateSearch& s, std::vector<Candidate>* out, RowCallback on_row,
                         void* ctx) {
   const hn::ScalableTag<uint8_t> d;
@@ -44,12 +57,10 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<Candidate>* out, R
       const auto vc = hn::LoadU(d, c + x);
       const auto rise = hn::SaturatedSub(vc, hn::LoadU(d, up + x));  // != 0 iff c > up
       const auto fall = hn::SaturatedSub(hn::LoadU(d, dn + x), vc);  // == 0 iff dn <= c
-      const auto al =
-          hn::AverageRound(hn::AverageRound(hn::LoadU(d, l0 + x), hn::LoadU(d, l1 + x)),
-                           hn::AverageRound(hn::LoadU(d, l2 + x), hn::LoadU(d, l3 + x)));
-      const auto ar =
-          hn::AverageRound(hn::AverageRound(hn::LoadU(d, r0 + x), hn::LoadU(d, r1 + x)),
-                           hn::AverageRound(hn::LoadU(d, r2 + x), hn::LoadU(d, r3 + x)));
+      const auto al = Avg(d, Avg(d, hn::LoadU(d, l0 + x), hn::LoadU(d, l1 + x)),
+                          Avg(d, hn::LoadU(d, l2 + x), hn::LoadU(d, l3 + x)));
+      const auto ar = Avg(d, Avg(d, hn::LoadU(d, r0 + x), hn::LoadU(d, r1 + x)),
+                          Avg(d, hn::LoadU(d, r2 + x), hn::LoadU(d, r3 + x)));
       const auto contrast = hn::SaturatedSub(vc, hn::Min(al, ar));
       const auto below = hn::SaturatedSub(thr, contrast);  // == 0 iff contrast >= thr
       const auto m = hn::AndNot(hn::Eq(rise, zero), hn::Eq(hn::Or(fall, below), zero));
