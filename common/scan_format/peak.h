@@ -4,14 +4,13 @@
 
 namespace mirrorscan {
 
-// One laser-stripe peak in one image column: shared by the peak extractor and the .mscan
-// archive, so the archive stores exactly what the extractor produced.
+// One laser peak: where a stripe crosses an image column.
 struct Peak {
   uint16_t u = 0;       // image column
-  float v = 0;          // sub-pixel row of the stripe centre
-  float intensity = 0;  // peak grey value
-  float width = 0;      // stripe width in pixels
-  float score = 0;      // extractor's confidence
+  float v = 0;          // sub-pixel row of the stripe centre (integer = pixel centre)
+  float intensity = 0;  // peak height above the local background, DN
+  float width = 0;      // stripe width (FWHM) in pixels
+  float score = 0;      // extractor's confidence in [0, 1]
 
   bool operator==(const Peak&) const = default;
 };

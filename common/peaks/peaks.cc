@@ -1,0 +1,503 @@
+#include "common/peaks/peaks.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "common/peaks/peaks_internal.h"
+
+namespace mirrorscan {
+namespace {
+
+using peaks_internal::Candidate;
+using peaks_internal::CandidateSearch;
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+struct NamedEstimator {
+  PeakEstimator estimator;
+  const char* name;
+};
+constexpr NamedEstimator kEstimatorNames[] = {
+    {PeakEstimator::kThresholdedCom, "thresholded_com"},
+    {PeakEstimator::kWindowedCom, "windowed_com"},
+    {PeakEstimator::kGaussian3, "gaussian3"},
+    {PeakEstimator::kBlaisRioux4, "blais_rioux4"},
+    {PeakEstimator::kParabola3, "parabola3"},
+};
+
+// Column profile around one candidate, in sample coordinates (index i = row lo + i),
+// read on demand straight from the image column.
+struct Profile {
+  const uint8_t* col;  // Row lo of the column.
+  ptrdiff_t stride;
+  float b0, slope;  // Background at sample i: b0 + slope * i.
+  int n;
+  int first, last;     // Plateau (first == last unless the top is flat).
+  int win_lo, win_hi;  // Estimator window (inclusive), valley-clipped.
+  float threshold;
+  bool flat_top;  // Saturated or a plateau of >= 3 samples: no 3-point fit.
+  float Raw(int i) const { return static_cast<float>(col[i * stride]); }
+  // Background-subtracted sample.
+  float S(int i) const { return Raw(i) - (b0 + slope * static_cast<float>(i)); }
+};
+
+template <bool kRaw>
+float CentreOfMass(const Profile& p, int lo, int hi) {
+  float sum = 0, moment = 0;
+  for (int i = lo; i <= hi; ++i) {
+    const float wi = kRaw ? p.Raw(i) : std::max(0.0f, p.S(i));
+    sum += wi;
+    moment += wi * static_cast<float>(i - lo);
+  }
+  return sum > 0 ? static_cast<float>(lo) + moment / sum : kNaN;
+}
+
+float WindowedCom(const Profile& p) { return CentreOfMass<false>(p, p.win_lo, p.win_hi); }
+
+// The paper: intensity-weighted mean row of the contiguous bright pixels (raw weights).
+float ThresholdedCom(const Profile& p) {
+  int lo = p.first, hi = p.last;
+  while (lo > p.win_lo && p.S(lo - 1) >= p.threshold) --lo;
+  while (hi < p.win_hi && p.S(hi + 1) >= p.threshold) ++hi;
+  return CentreOfMass<true>(p, lo, hi);
+}
+
+float Parabola3(const Profile& p) {
+  const int k = p.first;
+  if (k < 1 || k + 1 >= p.n) return kNaN;
+  const float a = p.S(k - 1), b = p.S(k), c = p.S(k + 1);
+  const float den = a - 2 * b + c;
+  if (!(den < 0)) return kNaN;
+  return k + 0.5f * (a - c) / den;
+}
+
+float Gaussian3(const Profile& p) {
+  const int k = p.first;
+  if (k < 1 || k + 1 >= p.n) return kNaN;
+  const float a = p.S(k - 1), b = p.S(k), c = p.S(k + 1);
+  if (!(a > 0 && b > 0 && c > 0)) return Parabola3(p);
+  // ln a - 2 ln b + ln c = ln(a c / b^2); ln a - ln c = ln(a / c).
+  const float den = std::log((a * c) / (b * b));
+  if (!(den < 0)) return kNaN;
+  return static_cast<float>(k) + 0.5f * std::log(a / c) / den;
+}
+
+float BlaisRioux4(const Profile& p) {
+  const int k = p.first;
+  if (k < 3 || k + 3 >= p.n) return kNaN;
+  auto g = [&](int i) { return p.S(i + 2) + p.S(i + 1) - p.S(i - 1) - p.S(i - 2); };
+  // g > 0 left of the peak, < 0 right of it; interpolate the zero crossing.
+  const float g0 = g(k);
+  if (g0 >= 0) {
+    const float g1 = g(k + 1);
+    if (!(g1 < 0)) return kNaN;
+    return k + g0 / (g0 - g1);
+  }
+  const float gm = g(k - 1);
+  if (!(gm > 0)) return kNaN;
+  return (k - 1) + gm / (gm - g0);
+}
+
+float Estimate(PeakEstimator e, const Profile& p) {
+  if (p.flat_top) return WindowedCom(p);  // Clipped: no fit on the plateau.
+  switch (e) {
+    case PeakEstimator::kThresholdedCom:
+      return ThresholdedCom(p);
+    case PeakEstimator::kWindowedCom:
+      return WindowedCom(p);
+    case PeakEstimator::kGaussian3:
+      return Gaussian3(p);
+    case PeakEstimator::kBlaisRioux4:
+      return BlaisRioux4(p);
+    case PeakEstimator::kParabola3:
+      return Parabola3(p);
+  }
+  return kNaN;
+}
+
+[[noreturn]] void Invalid(const std::string& key, const std::string& problem) {
+  throw std::invalid_argument("peaks." + key + ": " + problem);
+}
+
+struct Roi {
+  int x0, x1, y0, y1;
+};
+
+Roi ResolveRoi(const ImageView& image, const PixelRect& roi) {
+  const int w = roi.width > 0 ? roi.width : image.width - roi.x;
+  const int h = roi.height > 0 ? roi.height : image.height - roi.y;
+  Roi r{roi.x, roi.x + w, roi.y, roi.y + h};
+  r.x0 = std::clamp(r.x0, 0, image.width);
+  r.x1 = std::clamp(r.x1, r.x0, image.width);
+  r.y0 = std::clamp(r.y0, 0, image.height);
+  r.y1 = std::clamp(r.y1, r.y0, image.height);
+  return r;
+}
+
+void CheckImage(const ImageView& image) {
+  if (image.width < 0 || image.height < 0 || image.width > 65535 || image.height > 65535 ||
+      (image.width > 0 && image.height > 0 &&
+       (image.data == nullptr || image.stride < image.width))) {
+    throw std::invalid_argument("ExtractPeaks: bad image view");
+  }
+}
+
+CandidateSearch MakeSearch(const ImageView& image, const PeakParams& params, const Roi& roi) {
+  return CandidateSearch{image.data, image.stride, roi.x0,        roi.x1,
+                         roi.y0,     roi.y1,       params.window, params.threshold_dn};
+}
+
+}  // namespace
+
+const char* ToString(PeakEstimator e) {
+  for (const auto& n : kEstimatorNames)
+    if (n.estimator == e) return n.name;
+  return "?";
+}
+
+const std::vector<PeakEstimator>& AllPeakEstimators() {
+  static const std::vector<PeakEstimator> all = {
+      PeakEstimator::kThresholdedCom, PeakEstimator::kWindowedCom, PeakEstimator::kGaussian3,
+      PeakEstimator::kBlaisRioux4, PeakEstimator::kParabola3};
+  return all;
+}
+
+void PeakParams::Validate() const {
+  if (threshold_dn < 1 || threshold_dn > 254) Invalid("threshold_dn", "must be in [1, 254]");
+  if (window < 4 || window > 64) Invalid("window", "must be in [4, 64]");
+  if (!(min_width_px >= 0) || !std::isfinite(min_width_px)) {
+    Invalid("min_width_px", "must be >= 0");
+  }
+  if (!(max_width_px > min_width_px) || !std::isfinite(max_width_px)) {
+    Invalid("max_width_px", "must be > min_width_px");
+  }
+  if (max_width_px > 2 * window) Invalid("max_width_px", "must be <= 2 * window");
+  if (max_peaks_per_column < 1 || max_peaks_per_column > 64) {
+    Invalid("max_peaks_per_column", "must be in [1, 64]");
+  }
+  if (!(min_separation_px >= 0) || !std::isfinite(min_separation_px)) {
+    Invalid("min_separation_px", "must be >= 0");
+  }
+  if (saturation_level < 1 || saturation_level > 255) {
+    Invalid("saturation_level", "must be in [1, 255]");
+  }
+  if (roi.x < 0 || roi.y < 0 || roi.width < 0 || roi.height < 0) {
+    Invalid("roi", "x, y, width, height must be >= 0");
+  }
+  for (size_t i = 0; i < excluded.size(); ++i) {
+    const PixelRect& e = excluded[i];
+    if (e.x < 0 || e.y < 0 || e.width <= 0 || e.height <= 0) {
+      Invalid("excluded[" + std::to_string(i) + "]", "x, y must be >= 0, width, height > 0");
+    }
+  }
+}
+
+PeakParams PeakParams::FromJson(const JsonReader& json) {
+  json.AllowOnly({"estimator", "threshold_dn", "window", "min_width_px", "max_width_px",
+                  "max_peaks_per_column", "min_separation_px", "saturation_level", "roi",
+                  "excluded"});
+  PeakParams p;
+  std::vector<std::string> names;
+  for (const auto& n : kEstimatorNames) names.push_back(n.name);
+  const std::string estimator = json.Choice("estimator", names, ToString(p.estimator));
+  for (const auto& n : kEstimatorNames)
+    if (estimator == n.name) p.estimator = n.estimator;
+  p.threshold_dn = json.Integer("threshold_dn", p.threshold_dn, 1, 254);
+  p.window = json.Integer("window", p.window, 4, 64);
+  p.min_width_px = static_cast<float>(json.Number("min_width_px", p.min_width_px, 0, 128));
+  p.max_width_px = static_cast<float>(json.Number("max_width_px", p.max_width_px, 0, 128));
+  if (p.max_width_px <= p.min_width_px) json.Fail("max_width_px", "must be > min_width_px");
+  if (p.max_width_px > 2 * p.window) json.Fail("max_width_px", "must be <= 2 * window");
+  p.max_peaks_per_column = json.Integer("max_peaks_per_column", p.max_peaks_per_column, 1, 64);
+  p.min_separation_px =
+      static_cast<float>(json.Number("min_separation_px", p.min_separation_px, 0, 1000));
+  p.saturation_level = json.Integer("saturation_level", p.saturation_level, 1, 255);
+  auto rect = [](const JsonReader& r, bool positive) {
+    r.AllowOnly({"x", "y", "width", "height"});
+    PixelRect out;
+    out.x = r.Integer("x", 0, 0, 65535);
+    out.y = r.Integer("y", 0, 0, 65535);
+    out.width =
+        positive ? r.Integer("width", std::nullopt, 1, 65535) : r.Integer("width", 0, 0, 65535);
+    out.height =
+        positive ? r.Integer("height", std::nullopt, 1, 65535) : r.Integer("height", 0, 0, 65535);
+    return out;
+  };
+  if (json.Has("roi")) p.roi = rect(json.Object("roi"), false);
+  if (json.Has("excluded")) {
+    for (const JsonReader& r : json.Objects("excluded")) p.excluded.push_back(rect(r, true));
+  }
+  try {
+    p.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(json.file() + ": " + e.what());
+  }
+  return p;
+}
+
+std::string PeakExtractor::SimdTarget() { return peaks_internal::SimdTargetName(); }
+
+namespace {
+
+// Half-maximum crossings left and right of the top [first, last], linearly interpolated;
+// false if a crossing is not inside the samples.
+template <typename S>
+bool HalfMaxCrossings(const S& s, int first, int last, int n, float half, float* xl, float* xr) {
+  int il = first;
+  float s_in = s(il), s_out = s(il - 1);  // first >= 1: candidates are never on row y0.
+  while (s_out > half) {
+    if (--il == 0) return false;
+    s_in = s_out;
+    s_out = s(il - 1);
+  }
+  *xl = static_cast<float>(il - 1) + (half - s_out) / (s_in - s_out);
+  int ir = last;
+  if (ir >= n - 1) return false;
+  s_in = s(ir);
+  s_out = s(ir + 1);
+  while (s_out > half) {
+    if (++ir == n - 1) return false;
+    s_in = s_out;
+    s_out = s(ir + 1);
+  }
+  *xr = static_cast<float>(ir) + (s_in - half) / (s_in - s_out);
+  return true;
+}
+
+// Refines one candidate (u, r0) into a peak; false if it is no laser peak. A pure function
+// of the image and the candidate, so the order candidates arrive in does not matter.
+bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, int r0, Peak* peak) {
+  for (const PixelRect& e : params.excluded)
+    if (e.Contains(u, r0)) return false;
+  const int w = params.window;
+  const float thr = static_cast<float>(params.threshold_dn);
+  const ptrdiff_t stride = search.stride;
+  const uint8_t* column = search.data + u;
+  const int top = column[r0 * stride];
+  // Plateau (flat top); a step up after it means this is no maximum.
+  int r1 = r0;
+  while (r1 + 1 < search.y1 && column[(r1 + 1) * stride] == top && r1 - r0 < 2 * w) ++r1;
+  if (r1 + 1 < search.y1 && column[(r1 + 1) * stride] > top) return false;
+  if (r1 - r0 >= 2 * w) return false;
+  // Local background from the two flanks: linear if they agree, else the lower one
+  // (the other may hold a neighbouring line).
+  int left_sum = 0, right_sum = 0;
+  if (r0 - w >= search.y0 && r1 + w < search.y1) {
+    const uint8_t* l = column + (r0 - w) * stride;
+    const uint8_t* r = column + (r1 + w - 3) * stride;
+    left_sum = l[0] + l[stride] + l[2 * stride] + l[3 * stride];
+    right_sum = r[0] + r[stride] + r[2 * stride] + r[3 * stride];
+  } else {
+    for (int k = 0; k < 4; ++k) {
+      left_sum += search.At(u, r0 - w + k);
+      right_sum += search.At(u, r1 + w - 3 + k);
+    }
+  }
+  const float left = 0.25f * static_cast<float>(left_sum);
+  const float right = 0.25f * static_cast<float>(right_sum);
+  const float x_left = static_cast<float>(r0 - w) + 1.5f;
+  const float x_right = static_cast<float>(r1 + w) - 1.5f;
+  const bool linear = std::abs(left - right) <= 0.5f * thr;
+  const float slope = linear ? (right - left) / (x_right - x_left) : 0.0f;
+  const float base = linear ? left : std::min(left, right);
+  const int lo = std::max(r0 - w, search.y0);
+  const int hi = std::min(r1 + w, search.y1 - 1);
+  const int n = hi - lo + 1;
+  const int first = r0 - lo, last = r1 - lo;
+  const bool saturated = top >= params.saturation_level;
+  Profile profile{column + lo * stride,
+                  stride,
+                  base + (linear ? slope * (static_cast<float>(lo) - x_left) : 0.0f),
+                  slope,
+                  n,
+                  first,
+                  last,
+                  first,
+                  last,
+                  thr,
+                  saturated || last - first >= 2};
+  auto s = [&profile](int i) { return profile.S(i); };
+  const int mid = (first + last) / 2;
+  const float amplitude = (first + last) % 2 == 0 ? s(mid) : 0.5f * (s(mid) + s(mid + 1));
+  if (amplitude < thr) return false;
+  // Full width at half maximum, linear interpolation of the crossings.
+  const float half = 0.5f * amplitude;
+  float xl, xr;
+  if (!HalfMaxCrossings(s, first, last, n, half, &xl, &xr)) return false;
+  const float width = xr - xl;
+  if (width < params.min_width_px || width > params.max_width_px) return false;
+  if (profile.flat_top || params.estimator == PeakEstimator::kWindowedCom ||
+      params.estimator == PeakEstimator::kThresholdedCom) {
+    // Estimator window: ~ +-2.7 sigma around the top, clipped where the signal rises
+    // again (a neighbouring line) by more than the noise allowance.
+    const int k = std::min(w, static_cast<int>(std::ceil(1.15f * width)));
+    const float rise = 0.25f * thr + 0.05f * amplitude;
+    int wl = first, wr = last;
+    float low = s(wl);
+    while (wl > 0 && wl > first - k) {
+      const float next = s(wl - 1);
+      if (next > low + rise) break;
+      --wl;
+      low = std::min(low, next);
+    }
+    low = s(wr);
+    while (wr < n - 1 && wr < last + k) {
+      const float next = s(wr + 1);
+      if (next > low + rise) break;
+      ++wr;
+      low = std::min(low, next);
+    }
+    profile.win_lo = wl;
+    profile.win_hi = wr;
+  }
+  const float t = Estimate(params.estimator, profile);
+  if (!std::isfinite(t) || t < static_cast<float>(first) - 1.5f ||
+      t > static_cast<float>(last) + 1.5f) {
+    return false;
+  }
+  peak->u = static_cast<uint16_t>(u);
+  peak->v = static_cast<float>(lo) + t;
+  peak->intensity = amplitude;
+  peak->width = width;
+  // Quality: contrast over threshold, width well inside the limits, symmetric
+  // half-maximum crossings about the estimate, clipped tops are less certain.
+  const float q_amp = amplitude / (amplitude + 2.0f * thr);
+  const float q_wid = std::clamp((width - params.min_width_px) / 0.5f, 0.0f, 1.0f) *
+                      std::clamp((params.max_width_px - width) / 1.0f, 0.0f, 1.0f);
+  const float q_sym = std::clamp(1.0f - std::abs(xl + xr - 2.0f * t) / width, 0.0f, 1.0f);
+  peak->score = std::clamp(q_amp * q_wid * q_sym * (saturated ? 0.8f : 1.0f), 0.0f, 1.0f);
+  return true;
+}
+
+bool ByRow(const Peak& a, const Peak& b) {
+  if (a.v != b.v) return a.v < b.v;
+  if (a.intensity != b.intensity) return a.intensity > b.intensity;
+  return a.width < b.width;
+}
+
+bool ByStrength(const Peak& a, const Peak& b) {
+  if (a.intensity != b.intensity) return a.intensity > b.intensity;
+  return ByRow(a, b);
+}
+
+struct RowSink {
+  PeakExtractor* self;
+  const CandidateSearch* search;
+  const PeakParams* params;
+  std::vector<Candidate>* row;
+  std::vector<Peak>* peaks;
+};
+
+}  // namespace
+
+void PeakExtractor::RefineRow(void* ctx) {
+  const RowSink& sink = *static_cast<const RowSink*>(ctx);
+  Peak peak;
+  for (const Candidate& c : *sink.row) {
+    if (RefineOne(*sink.search, *sink.params, c.u, c.v, &peak)) {
+      sink.peaks->push_back(peak);
+    }
+  }
+  sink.row->clear();
+}
+
+void PeakExtractor::Extract(const ImageView& image, const PeakParams& params,
+                            std::vector<Peak>* out) {
+  Run(image, params, /*simd=*/true, out);
+}
+
+void PeakExtractor::ExtractScalar(const ImageView& image, const PeakParams& params,
+                                  std::vector<Peak>* out) {
+  Run(image, params, /*simd=*/false, out);
+}
+
+void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool simd,
+                        std::vector<Peak>* out) {
+  params.Validate();
+  CheckImage(image);
+  out->clear();
+  peaks_.clear();
+  candidates_.clear();
+  const Roi roi = ResolveRoi(image, params.roi);
+  if (roi.x1 <= roi.x0 || roi.y1 - roi.y0 < 3) return;
+  const CandidateSearch search = MakeSearch(image, params, roi);
+  RowSink sink{this, &search, &params, &candidates_, &peaks_};
+  if (simd) {
+    // Rows in order; each row's candidates are refined while its rows are in cache.
+    peaks_internal::FindCandidatesSimd(search, &candidates_, &PeakExtractor::RefineRow, &sink);
+  } else {
+    // Plain reference: walk each column.
+    for (int u = roi.x0; u < roi.x1; ++u) {
+      for (int r = roi.y0 + 1; r <= roi.y1 - 2; ++r) {
+        if (search.IsCandidate(u, r)) {
+          candidates_.push_back({static_cast<uint16_t>(u), static_cast<uint16_t>(r)});
+        }
+      }
+      RefineRow(&sink);
+    }
+  }
+
+  // Counting sort by column, then per column: sort by v, enforce the separation (keep the
+  // stronger), cap the count (keep the strongest).
+  const int ncols = roi.x1 - roi.x0;
+  column_start_.assign(ncols + 1, 0);
+  for (const Peak& p : peaks_) ++column_start_[p.u - roi.x0 + 1];
+  for (int i = 0; i < ncols; ++i) column_start_[i + 1] += column_start_[i];
+  out->resize(peaks_.size());
+  for (const Peak& p : peaks_) (*out)[column_start_[p.u - roi.x0]++] = p;
+  // column_start_[i] is now the end of column i.
+  size_t write = 0, begin = 0;
+  for (int col = 0; col < ncols; ++col) {
+    const size_t end = column_start_[col];
+    Peak* first = out->data() + begin;
+    Peak* last = out->data() + end;
+    begin = end;
+    if (first == last) continue;
+    // Insertion sort: columns hold a few peaks, nearly always in order already.
+    for (Peak* it = first + 1; it != last; ++it) {
+      const Peak x = *it;
+      Peak* j = it;
+      for (; j != first && ByRow(x, *(j - 1)); --j) *j = *(j - 1);
+      *j = x;
+    }
+    Peak* kept = first;
+    for (Peak* it = first + 1; it != last; ++it) {
+      if (it->v - kept->v < params.min_separation_px) {
+        if (ByStrength(*it, *kept)) *kept = *it;
+      } else {
+        *++kept = *it;
+      }
+    }
+    last = kept + 1;
+    if (last - first > params.max_peaks_per_column) {
+      std::partial_sort(first, first + params.max_peaks_per_column, last, ByStrength);
+      last = first + params.max_peaks_per_column;
+      std::sort(first, last, ByRow);
+    }
+    for (Peak* it = first; it != last; ++it) (*out)[write++] = *it;
+  }
+  out->resize(write);
+}
+
+std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {
+  PeakExtractor extractor;
+  std::vector<Peak> out;
+  extractor.Extract(image, params, &out);
+  return out;
+}
+
+void ExtractPeaks(const ImageView& image, const PeakParams& params, PeakExtractor* extractor,
+                  std::vector<Peak>* out) {
+  extractor->Extract(image, params, out);
+}
+
+std::vector<Peak> ExtractPeaksScalar(const ImageView& image, const PeakParams& params) {
+  PeakExtractor extractor;
+  std::vector<Peak> out;
+  extractor.ExtractScalar(image, params, &out);
+  return out;
+}
+
+}  // namespace mirrorscan

@@ -1,0 +1,109 @@
+#pragma once
+
+// Column-wise laser peak extraction: for every image column, the sub-pixel row of every
+// laser stripe crossing it (several per column: up to 3 lasers x 3 views).
+//
+// Two stages, shared by both implementations:
+//  1. Candidates (integer rows). Row r of column u is a candidate when it starts a local
+//     maximum (I[r-1] < I[r] >= I[r+1]) and rises at least threshold_dn above the local
+//     background b(r) = min(A(r-W .. r-W+3), A(r+W-3 .. r+W)), where A(a..a+3) is the
+//     rounded 4-row mean avg(avg(I[a], I[a+1]), avg(I[a+2], I[a+3])) with
+//     avg(x, y) = (x + y + 1) >> 1 and W = window. Rows outside the ROI are clamped to it.
+//     ExtractPeaks computes this with SIMD over rows (many columns per vector);
+//     ExtractPeaksScalar walks each column. Both give the same candidates.
+//  2. Refinement (scalar, per candidate, identical in both): plateau, local linear
+//     background from the two flanks, FWHM, width checks, sub-pixel estimator, score;
+//     then per column: min_separation_px (keep the stronger) and max_peaks_per_column
+//     (keep the strongest).
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/config/json_reader.h"
+#include "common/scan_format/peak.h"
+
+namespace mirrorscan {
+
+// A borrowed 8-bit grayscale image; stride in bytes (>= width).
+struct ImageView {
+  const uint8_t* data = nullptr;
+  int width = 0, height = 0;
+  ptrdiff_t stride = 0;
+};
+
+// Sub-pixel estimators, each a pure function of the background-subtracted column samples
+// around the candidate.
+// Saturated tops and flat plateaus (>= 3 equal samples) always use the windowed centre of
+// mass of the whole peak (flanks and plateau): a 3-point fit on clipped samples is wrong.
+enum class PeakEstimator {
+  kThresholdedCom,  // The paper: intensity-weighted mean row of the bright pixels (raw).
+  kWindowedCom,     // Centre of mass of background-subtracted samples, window ~ +-2.7 sigma.
+  kGaussian3,       // 3-point Gaussian (parabola through the logarithms).
+  kBlaisRioux4,     // Blais-Rioux 4th-order derivative filter, linear zero crossing.
+  kParabola3,       // 3-point parabola.
+};
+const char* ToString(PeakEstimator e);
+const std::vector<PeakEstimator>& AllPeakEstimators();
+
+struct PixelRect {
+  int x = 0, y = 0, width = 0, height = 0;  // width/height 0 in `roi` = to the frame edge.
+  bool Contains(int u, int v) const { return u >= x && u < x + width && v >= y && v < y + height; }
+};
+
+struct PeakParams {
+  PeakEstimator estimator = PeakEstimator::kGaussian3;
+  int threshold_dn = 20;      // Peak minus local background, DN.
+  int window = 8;             // Half-width in rows of the background/estimator window.
+  float min_width_px = 1.2f;  // FWHM limits; narrower = glint, wider = not a laser line.
+  float max_width_px = 8.0f;
+  int max_peaks_per_column = 9;  // Keeps the strongest.
+  float min_separation_px = 3.0f;
+  int saturation_level = 255;       // Samples >= this are clipped.
+  PixelRect roi;                    // Default: whole frame.
+  std::vector<PixelRect> excluded;  // Peaks whose pixel falls in one of these are dropped.
+
+  // Throws std::invalid_argument "peaks.<key>: problem" on bad values.
+  void Validate() const;
+  // Reads board.json's "peaks" object (all keys optional, unknown keys rejected):
+  // {"estimator": "gaussian3", "threshold_dn": 20, "window": 8, "min_width_px": 1.2,
+  //  "max_width_px": 8, "max_peaks_per_column": 9, "min_separation_px": 3,
+  //  "saturation_level": 255, "roi": {"x":0,"y":0,"width":0,"height":0},
+  //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...]}
+  // Errors are ConfigError "file: peaks.key: problem".
+  static PeakParams FromJson(const JsonReader& json);
+};
+
+// Reusable per-frame state: after the first frames, extraction allocates nothing.
+class PeakExtractor {
+ public:
+  // SIMD candidates (Highway, runtime dispatch). `out` is cleared, then filled sorted by
+  // (u, v).
+  void Extract(const ImageView& image, const PeakParams& params, std::vector<Peak>* out);
+  // Plain scalar reference, column by column; same peaks as Extract.
+  void ExtractScalar(const ImageView& image, const PeakParams& params, std::vector<Peak>* out);
+
+  // Highway target used by Extract (e.g. "AVX3", "AVX2", "NEON", "SVE2").
+  static std::string SimdTarget();
+
+  struct Candidate {
+    uint16_t u;
+    uint16_t v;
+  };
+
+ private:
+  void Run(const ImageView& image, const PeakParams& params, bool simd, std::vector<Peak>* out);
+  static void RefineRow(void* ctx);
+
+  std::vector<Candidate> candidates_;  // Of one row (SIMD) or one column (scalar).
+  std::vector<Peak> peaks_;            // Refined, before the per-column pass.
+  std::vector<uint32_t> column_start_;
+};
+
+std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
+void ExtractPeaks(const ImageView& image, const PeakParams& params, PeakExtractor* extractor,
+                  std::vector<Peak>* out);
+std::vector<Peak> ExtractPeaksScalar(const ImageView& image, const PeakParams& params);
+
+}  // namespace mirrorscan

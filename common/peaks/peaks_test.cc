@@ -1,0 +1,399 @@
+#include "common/peaks/peaks.h"
+
+#include <gtest/gtest.h>
+#include <hwy/targets.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/peaks/peaks_synth.h"
+
+namespace mirrorscan {
+namespace {
+
+using synth::Frame;
+using synth::Scene;
+
+struct Score {
+  int truth = 0, found = 0, false_peaks = 0, frames = 0;
+  double sum = 0, sum2 = 0;
+  double Rms() const { return found ? std::sqrt(sum2 / found) : NAN; }
+  double Bias() const { return found ? sum / found : NAN; }
+  double Recall() const { return truth ? static_cast<double>(found) / truth : NAN; }
+  double FalsePerFrame() const { return frames ? static_cast<double>(false_peaks) / frames : 0; }
+};
+
+// Matches each truth to the nearest peak of its column within 1.5 px.
+void Evaluate(const Frame& f, const std::vector<Peak>& peaks, Score* s) {
+  std::vector<std::vector<const Peak*>> by_column(f.width);
+  for (const Peak& p : peaks) by_column[p.u].push_back(&p);
+  std::vector<char> used(peaks.size(), 0);
+  for (const synth::Truth& t : f.truth) {
+    ++s->truth;
+    const Peak* best = nullptr;
+    for (const Peak* p : by_column[t.u]) {
+      if (std::abs(p->v - t.v) < 1.5 && (!best || std::abs(p->v - t.v) < std::abs(best->v - t.v)))
+        best = p;
+    }
+    if (!best) continue;
+    used[best - peaks.data()] = 1;
+    ++s->found;
+    const double e = best->v - t.v;
+    s->sum += e;
+    s->sum2 += e * e;
+  }
+  for (char u : used) s->false_peaks += !u;
+  ++s->frames;
+}
+
+struct Condition {
+  const char* name;
+  double noise;
+  double amp_min, amp_max;
+  double speckle;
+  int threshold;
+};
+
+// Accuracy conditions. Amplitude = peak of the continuous profile before pixel integration.
+const Condition kConditions[] = {
+    {"noise-free", 0, 30, 250, 0, 12},
+    {"sigma 2 DN", 2, 30, 250, 0.1, 12},
+    {"sigma 2 DN, A>=100", 2, 100, 250, 0.1, 12},
+    {"sigma 5 DN", 5, 60, 250, 0.1, 30},
+    {"saturated (A 300-900), sigma 2", 2, 300, 900, 0.1, 12},
+};
+
+Frame ConditionFrame(const Condition& c, int index) {
+  std::mt19937 rng(1000 + index);
+  Scene scene;
+  scene.noise_sigma = c.noise;
+  scene.speckle = c.speckle;
+  scene.stripes = synth::RandomStripes(6, scene.height, c.amp_min, c.amp_max, &rng);
+  return synth::Render(scene, 77 + index);
+}
+
+constexpr int kFramesPerCondition = 4;
+
+TEST(PeakAccuracy, TableOfEstimators) {
+  std::vector<std::vector<Frame>> frames;
+  for (const Condition& c : kConditions) {
+    frames.emplace_back();
+    for (int i = 0; i < kFramesPerCondition; ++i) frames.back().push_back(ConditionFrame(c, i));
+  }
+  std::printf("\n| estimator | condition | RMS px | bias px | recall %% | false/frame |\n");
+  std::printf("|---|---|---|---|---|---|\n");
+  PeakExtractor extractor;
+  std::vector<Peak> peaks;
+  for (PeakEstimator e : AllPeakEstimators()) {
+    for (size_t ci = 0; ci < std::size(kConditions); ++ci) {
+      const Condition& c = kConditions[ci];
+      PeakParams params;
+      params.estimator = e;
+      params.threshold_dn = c.threshold;
+      Score s;
+      for (const Frame& f : frames[ci]) {
+        extractor.Extract(f.view(), params, &peaks);
+        Evaluate(f, peaks, &s);
+      }
+      std::printf("| %s | %s | %.4f | %+.4f | %.2f | %.2f |\n", ToString(e), c.name, s.Rms(),
+                  s.Bias(), 100 * s.Recall(), s.FalsePerFrame());
+      SCOPED_TRACE(std::string(ToString(e)) + " / " + c.name);
+      EXPECT_GE(s.Recall(), 0.995);
+      EXPECT_LE(s.FalsePerFrame(), 1.0);
+      if (e == PeakParams().estimator) {
+        const std::string name = c.name;
+        if (name == "noise-free") {
+          EXPECT_LE(s.Rms(), 0.01);
+        }
+        if (name == "sigma 2 DN, A>=100") {
+          EXPECT_LE(s.Rms(), 0.03);
+          EXPECT_LE(std::abs(s.Bias()), 0.005);
+        }
+        if (name.rfind("saturated", 0) == 0) {
+          EXPECT_LE(s.Rms(), 0.05);
+        }
+      }
+    }
+  }
+}
+
+// Many frames, every estimator, awkward ROIs: SIMD candidates == scalar candidates.
+TEST(PeakSimd, SimdEqualsScalarExactly) {
+  std::printf("SIMD target: %s\n", PeakExtractor::SimdTarget().c_str());
+  PeakExtractor a, b;
+  std::vector<Peak> pa, pb;
+  int total = 0;
+  for (int i = 0; i < 24; ++i) {
+    std::mt19937 rng(5000 + i);
+    Scene scene;
+    scene.width = 1024 - 37 * (i % 3);  // Widths that are no multiple of the vector.
+    scene.height = 768 - 11 * (i % 2);
+    scene.noise_sigma = (i % 4) * 2.0;
+    scene.speckle = 0.2;
+    scene.ambient = 10 + 10 * (i % 5);
+    scene.stripes = synth::RandomStripes(3 + i % 7, scene.height, 20, 600, &rng);
+    for (int g = 0; g < 20; ++g) {
+      scene.glints.push_back(
+          {static_cast<int>(rng() % scene.width), static_cast<int>(rng() % scene.height), 120});
+    }
+    const Frame f = synth::Render(scene, 900 + i);
+    PeakParams params;
+    params.estimator = AllPeakEstimators()[i % AllPeakEstimators().size()];
+    params.threshold_dn = 8 + i % 20;
+    params.window = 4 + i % 9;
+    if (i % 3 == 1) params.roi = {13, 7, 701, 500};
+    if (i % 3 == 2) params.roi = {0, 300, 0, 0};
+    if (i % 5 == 0) params.excluded = {{100, 0, 50, 768}, {400, 200, 300, 100}};
+    a.Extract(f.view(), params, &pa);
+    b.ExtractScalar(f.view(), params, &pb);
+    ASSERT_EQ(pa.size(), pb.size()) << "frame " << i;
+    for (size_t k = 0; k < pa.size(); ++k) {
+      ASSERT_EQ(pa[k].u, pb[k].u);
+      ASSERT_EQ(pa[k].v, pb[k].v);
+      ASSERT_EQ(pa[k].intensity, pb[k].intensity);
+      ASSERT_EQ(pa[k].width, pb[k].width);
+      ASSERT_EQ(pa[k].score, pb[k].score);
+    }
+    total += static_cast<int>(pa.size());
+  }
+  EXPECT_GT(total, 24 * 1000);
+}
+
+// Every Highway target this CPU supports (e.g. AVX3, AVX2, SSE4; SVE2, SVE, NEON).
+TEST(PeakSimd, SimdEqualsScalarOnEveryTarget) {
+  std::mt19937 rng(77);
+  Scene scene;
+  scene.noise_sigma = 3;
+  scene.speckle = 0.2;
+  scene.width = 1000;
+  scene.stripes = synth::RandomStripes(7, scene.height, 20, 600, &rng);
+  const Frame f = synth::Render(scene, 78);
+  PeakParams params;
+  params.threshold_dn = 10;
+  const auto reference = ExtractPeaksScalar(f.view(), params);
+  for (const int64_t target : hwy::SupportedAndGeneratedTargets()) {
+    hwy::SetSupportedTargetsForTest(target);
+    const auto peaks = ExtractPeaks(f.view(), params);
+    std::printf("target %s: %zu peaks\n", hwy::TargetName(target), peaks.size());
+    ASSERT_EQ(peaks.size(), reference.size()) << hwy::TargetName(target);
+    for (size_t k = 0; k < peaks.size(); ++k) {
+      ASSERT_EQ(peaks[k].u, reference[k].u) << hwy::TargetName(target);
+      ASSERT_EQ(peaks[k].v, reference[k].v) << hwy::TargetName(target);
+    }
+  }
+  hwy::SetSupportedTargetsForTest(0);
+}
+
+TEST(PeakSimd, TinyAndOddImages) {
+  std::mt19937 rng(3);
+  for (int w : {1, 5, 31, 33, 65, 130}) {
+    for (int h : {1, 2, 3, 9, 40}) {
+      std::vector<uint8_t> px(static_cast<size_t>(w + 3) * h);
+      for (auto& p : px) p = static_cast<uint8_t>(rng() % 256);
+      const ImageView view{px.data(), w, h, w + 3};
+      PeakParams params;
+      params.threshold_dn = 10;
+      params.window = 4;
+      const auto pa = ExtractPeaks(view, params);
+      const auto pb = ExtractPeaksScalar(view, params);
+      ASSERT_EQ(pa.size(), pb.size()) << w << "x" << h;
+      for (size_t k = 0; k < pa.size(); ++k) {
+        EXPECT_EQ(pa[k].u, pb[k].u);
+        EXPECT_EQ(pa[k].v, pb[k].v);
+      }
+    }
+  }
+}
+
+TEST(PeakRobustness, TwoLinesSixPixelsApartBothFound) {
+  for (double sigma : {0.6, 1.0, 1.5}) {
+    Scene scene;
+    scene.noise_sigma = 2;
+    synth::Stripe s1{
+        .v0 = 300, .slope = 0.03, .amplitude = 80, .amplitude_end = 200, .sigma = sigma};
+    synth::Stripe s2 = s1;
+    s2.v0 = 306;
+    s2.amplitude = 200;
+    s2.amplitude_end = 80;
+    scene.stripes = {s1, s2};
+    const Frame f = synth::Render(scene, 11);
+    PeakParams params;
+    params.threshold_dn = 12;
+    Score s;
+    Evaluate(f, ExtractPeaks(f.view(), params), &s);
+    std::printf("two lines 6 px apart, sigma %.1f: recall %.2f%%, RMS %.4f, bias %+.4f\n", sigma,
+                100 * s.Recall(), s.Rms(), s.Bias());
+    EXPECT_GE(s.Recall(), 0.995) << sigma;
+    EXPECT_EQ(s.false_peaks, 0) << sigma;
+    EXPECT_LE(s.Rms(), 0.1) << sigma;
+  }
+}
+
+TEST(PeakRobustness, GlintsGapsAndAmbientGradient) {
+  std::mt19937 rng(8);
+  Scene scene;
+  scene.noise_sigma = 2;
+  scene.ambient = 20;
+  scene.ambient_du = 0.1;   // 20 .. 122 DN across the frame
+  scene.ambient_dv = 0.08;  // plus 61 DN down it
+  scene.stripes = synth::RandomStripes(5, scene.height, 60, 200, &rng);
+  scene.stripes[1].gap_begin = 200;
+  scene.stripes[1].gap_end = 420;
+  scene.stripes[3].gap_begin = 700;
+  scene.stripes[3].gap_end = 710;
+  for (int g = 0; g < 300; ++g) {  // Single-pixel glints well away from the stripes.
+    const int u = static_cast<int>(rng() % 1024);
+    const int v = 30 + static_cast<int>(rng() % 700);
+    bool near = false;
+    for (const auto& s : scene.stripes) near = near || std::abs(s.Centre(u) - v) < 12;
+    if (!near) scene.glints.push_back({u, v, 60 + static_cast<int>(rng() % 150)});
+  }
+  const Frame f = synth::Render(scene, 12);
+  PeakParams params;
+  params.threshold_dn = 12;
+  const auto peaks = ExtractPeaks(f.view(), params);
+  Score s;
+  Evaluate(f, peaks, &s);
+  std::printf("glints %zu, gaps, gradient: recall %.2f%%, false %d, RMS %.4f\n",
+              scene.glints.size(), 100 * s.Recall(), s.false_peaks, s.Rms());
+  EXPECT_GE(s.Recall(), 0.995);
+  EXPECT_LE(s.false_peaks, 1);
+  for (const Peak& p : peaks) {
+    const bool in_gap = p.u >= 200 && p.u < 420 && std::abs(p.v - scene.stripes[1].Centre(p.u)) < 3;
+    EXPECT_FALSE(in_gap) << p.u << " " << p.v;
+  }
+}
+
+TEST(PeakRobustness, MaxPeaksPerColumnKeepsTheStrongest) {
+  Scene scene;
+  for (int i = 0; i < 5; ++i) {
+    synth::Stripe s{.v0 = 100.0 + 120 * i, .amplitude = 40.0 + 40 * i, .sigma = 1.0};
+    scene.stripes.push_back(s);
+  }
+  const Frame f = synth::Render(scene, 1);
+  PeakParams params;
+  params.max_peaks_per_column = 2;
+  const auto peaks = ExtractPeaks(f.view(), params);
+  ASSERT_EQ(peaks.size(), 2u * 1024);
+  for (size_t i = 0; i < peaks.size(); i += 2) {
+    EXPECT_NEAR(peaks[i].v, 460, 0.05);  // Strongest two, sorted by v.
+    EXPECT_NEAR(peaks[i + 1].v, 580, 0.05);
+  }
+}
+
+TEST(PeakRobustness, SaturatedPlateauUsesTheWholePeak) {
+  for (PeakEstimator e : AllPeakEstimators()) {
+    Scene scene;
+    synth::Stripe s{.v0 = 400.3, .slope = 0.011, .amplitude = 900, .sigma = 1.2};
+    scene.stripes = {s};
+    const Frame f = synth::Render(scene, 2);
+    PeakParams params;
+    params.estimator = e;
+    Score sc;
+    const auto peaks = ExtractPeaks(f.view(), params);
+    Evaluate(f, peaks, &sc);
+    EXPECT_GE(sc.Recall(), 0.999) << ToString(e);
+    EXPECT_LE(sc.Rms(), 0.05) << ToString(e);
+    for (const Peak& p : peaks) EXPECT_LT(p.score, 0.81f);
+  }
+}
+
+TEST(PeakOutput, SortedScoredAndReusable) {
+  std::mt19937 rng(4);
+  Scene scene;
+  scene.noise_sigma = 2;
+  scene.stripes = synth::RandomStripes(9, scene.height, 40, 250, &rng);
+  const Frame f = synth::Render(scene, 5);
+  PeakExtractor extractor;
+  std::vector<Peak> peaks;
+  PeakParams params;
+  extractor.Extract(f.view(), params, &peaks);
+  ASSERT_FALSE(peaks.empty());
+  for (size_t i = 1; i < peaks.size(); ++i) {
+    ASSERT_TRUE(peaks[i - 1].u < peaks[i].u ||
+                (peaks[i - 1].u == peaks[i].u && peaks[i - 1].v < peaks[i].v));
+  }
+  for (const Peak& p : peaks) {
+    EXPECT_GE(p.score, 0.0f);
+    EXPECT_LE(p.score, 1.0f);
+    EXPECT_GT(p.width, params.min_width_px);
+    EXPECT_GE(p.intensity, params.threshold_dn);
+  }
+  // Steady state: the same buffers are reused, nothing grows.
+  const Peak* data = peaks.data();
+  const size_t capacity = peaks.capacity();
+  for (int i = 0; i < 5; ++i) extractor.Extract(f.view(), params, &peaks);
+  EXPECT_EQ(peaks.data(), data);
+  EXPECT_EQ(peaks.capacity(), capacity);
+}
+
+TEST(PeakOutput, RoiAndExcludedRectangles) {
+  Scene scene;
+  scene.stripes = {synth::Stripe{.v0 = 200, .amplitude = 100, .sigma = 1},
+                   synth::Stripe{.v0 = 500, .amplitude = 100, .sigma = 1}};
+  const Frame f = synth::Render(scene, 1);
+  PeakParams params;
+  params.roi = {100, 150, 500, 100};
+  auto peaks = ExtractPeaks(f.view(), params);
+  ASSERT_EQ(peaks.size(), 500u);
+  EXPECT_EQ(peaks.front().u, 100);
+  EXPECT_EQ(peaks.back().u, 599);
+  params = PeakParams();
+  params.excluded = {{0, 450, 512, 100}};
+  peaks = ExtractPeaks(f.view(), params);
+  EXPECT_EQ(peaks.size(), 1024u + 512u);
+}
+
+TEST(PeakParamsTest, FromJsonReadsAndRejects) {
+  const auto good = JsonReader::ParseText(
+      R"({"peaks": {"estimator": "gaussian3", "threshold_dn": 25, "window": 10,
+          "roi": {"x": 1, "y": 2, "width": 30, "height": 40},
+          "excluded": [{"x": 5, "y": 6, "width": 7, "height": 8}]}})",
+      "board.json");
+  const PeakParams p = PeakParams::FromJson(JsonReader(good, "board.json").Object("peaks"));
+  EXPECT_EQ(p.estimator, PeakEstimator::kGaussian3);
+  EXPECT_EQ(p.threshold_dn, 25);
+  EXPECT_EQ(p.window, 10);
+  EXPECT_EQ(p.roi.height, 40);
+  ASSERT_EQ(p.excluded.size(), 1u);
+  EXPECT_EQ(p.excluded[0].width, 7);
+
+  auto error = [](const std::string& text) -> std::string {
+    const auto j = JsonReader::ParseText(text, "board.json");
+    try {
+      PeakParams::FromJson(JsonReader(j, "board.json").Object("peaks"));
+    } catch (const ConfigError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_EQ(error(R"({"peaks": {"treshold_dn": 3}})").rfind("board.json: peaks", 0), 0u);
+  EXPECT_NE(error(R"({"peaks": {"treshold_dn": 3}})").find("treshold_dn"), std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"estimator": "magic"}})").find("peaks.estimator"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"threshold_dn": 0}})").find("peaks.threshold_dn"),
+            std::string::npos);
+  EXPECT_NE(
+      error(R"({"peaks": {"min_width_px": 5, "max_width_px": 4}})").find("peaks.max_width_px"),
+      std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"roi": {"x": -1}}})").find("peaks.roi.x"), std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"excluded": [{"x": 1, "y": 1, "width": 0, "height": 1}]}})")
+                .find("peaks.excluded[0].width"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"window": 2}})").find("peaks.window"), std::string::npos);
+
+  PeakParams bad;
+  bad.max_peaks_per_column = 0;
+  try {
+    bad.Validate();
+    FAIL();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("peaks.max_peaks_per_column"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace mirrorscan
