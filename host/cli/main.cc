@@ -3,12 +3,14 @@
 
 #include <CLI/CLI.hpp>
 
+#include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"mirrorscan: host tools for the mirrorscan body scanner"};
   app.require_subcommand(1);
   mirrorscan::cli::AddSimCommands(app);
+  mirrorscan::cli::AddPeaksCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
