@@ -142,7 +142,8 @@ Renderer::Renderer(const Scene& scene) : scene_(scene) {
   };
   // Floor: a large quad at z = 0 facing up.
   TriangleMesh floor;
-  floor.vertices = {{-5000, -5000, 0}, {5000, -5000, 0}, {5000, 5000, 0}, {-5000, 5000, 0}};
+  // Far larger than any view, so its rim never makes an edge in the image.
+  floor.vertices = {{-1e5, -1e5, 0}, {1e5, -1e5, 0}, {1e5, 1e5, 0}, {-1e5, 1e5, 0}};
   floor.triangles = {{0, 1, 2}, {0, 2, 3}};
   add(floor, Material::kFloor);
   for (const auto& panel : scene_.panels) add(panel.Mesh(), Material::kPanel);

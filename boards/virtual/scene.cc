@@ -233,7 +233,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
                 "blur_px", "noise"});
   Sensor& sensor = scene.sensor;
   sensor.ambient_dn = sr.Number("ambient_dn", 40.0, 0.0, 255.0);
-  sensor.laser_dn = sr.Number("laser_dn", 220.0, 0.0, 1e5);
+  sensor.laser_dn = sr.Number("laser_dn", 400.0, 0.0, 1e5);
   sensor.read_noise_dn = sr.Number("read_noise_dn", 2.0, 0.0, 100.0);
   sensor.electrons_per_dn = sr.Number("electrons_per_dn", 40.0, 0.01, 1e6);
   sensor.speckle_contrast = sr.Number("speckle_contrast", 0.2, 0.0, 1.0);

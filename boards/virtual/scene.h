@@ -88,7 +88,7 @@ struct Lasers {
 
 struct Sensor {
   double ambient_dn = 40.0;  // white diffuse surface under ambient light
-  double laser_dn = 220.0;   // peak of a white surface 1 m from the emitter, head-on
+  double laser_dn = 400.0;   // sheet centre on a white surface 1 m from the emitter, head-on
   double read_noise_dn = 2.0;
   double electrons_per_dn = 40.0;  // shot noise: variance = signal / electrons_per_dn
   double speckle_contrast = 0.2;   // multiplicative, varies along the stripe

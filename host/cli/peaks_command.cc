@@ -57,7 +57,8 @@ PeakParams LoadParams(const PeaksOptions& o) {
 
 cv::Mat Decode(const std::string& path) {
   cv::Mat image = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (image.empty()) throw std::runtime_error(path + ": cannot read the image (PNG or PGM expected)");
+  if (image.empty())
+    throw std::runtime_error(path + ": cannot read the image (PNG or PGM expected)");
   if (image.depth() != CV_8U) throw std::runtime_error(path + ": expected an 8-bit image");
   if (image.channels() == 3) cv::cvtColor(image, image, cv::COLOR_BGR2GRAY);
   if (image.channels() == 4) cv::cvtColor(image, image, cv::COLOR_BGRA2GRAY);
@@ -80,7 +81,8 @@ void WriteOverlay(const std::string& path, const cv::Mat& image, const std::vect
     if (y < 0 || y >= color.rows) continue;
     // Colour by score: red (weak) to green (strong).
     const double s = std::clamp(static_cast<double>(p.score), 0.0, 1.0);
-    color.at<cv::Vec3b>(y, x) = cv::Vec3b(0, static_cast<uint8_t>(255 * s), static_cast<uint8_t>(255 * (1 - s)));
+    color.at<cv::Vec3b>(y, x) =
+        cv::Vec3b(0, static_cast<uint8_t>(255 * s), static_cast<uint8_t>(255 * (1 - s)));
   }
   if (!cv::imwrite(path, color)) throw std::runtime_error("--overlay: cannot write " + path);
 }
@@ -98,12 +100,14 @@ void Run(const PeaksOptions& o) {
     ExtractPeaks(View(images[i]), params, &extractor, &peaks);
     if (o.csv) {
       for (const Peak& p : peaks) {
-        std::printf("%s,%u,%.4f,%.1f,%.3f,%.3f\n", o.images[i].c_str(), p.u, p.v, p.intensity, p.width, p.score);
+        std::printf("%s,%u,%.4f,%.1f,%.3f,%.3f\n", o.images[i].c_str(), p.u, p.v, p.intensity,
+                    p.width, p.score);
       }
     } else if (o.json) {
       nlohmann::json list = nlohmann::json::array();
       for (const Peak& p : peaks) list.push_back({p.u, p.v, p.intensity, p.width, p.score});
-      results.push_back({{"image", o.images[i]}, {"peaks", peaks.size()}, {"u_v_intensity_width_score", list}});
+      results.push_back(
+          {{"image", o.images[i]}, {"peaks", peaks.size()}, {"u_v_intensity_width_score", list}});
     } else {
       std::printf("%s: %zu peaks\n", o.images[i].c_str(), peaks.size());
     }
@@ -111,7 +115,9 @@ void Run(const PeaksOptions& o) {
       std::string out = o.overlay;
       if (images.size() > 1) {
         const fs::path p(o.overlay);
-        out = (p.parent_path() / (p.stem().string() + "_" + std::to_string(i) + p.extension().string())).string();
+        out = (p.parent_path() /
+               (p.stem().string() + "_" + std::to_string(i) + p.extension().string()))
+                  .string();
       }
       WriteOverlay(out, images[i], peaks);
     }
@@ -129,7 +135,8 @@ void Run(const PeaksOptions& o) {
         total_peaks += peaks.size();
       }
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const nlohmann::json bench = {{"frames", frames},
                                   {"seconds", seconds},
                                   {"frames_per_second", frames / seconds},
@@ -139,8 +146,9 @@ void Run(const PeaksOptions& o) {
     if (o.json) {
       results.push_back({{"bench", bench}});
     } else {
-      std::fprintf(o.csv ? stderr : stdout, "bench: %zu frames in %.3f s: %.0f frames/s, %.0f MB/s (%s)\n", frames,
-                   seconds, frames / seconds, bytes / seconds / 1e6, PeakExtractor::SimdTarget().c_str());
+      std::fprintf(o.csv ? stderr : stdout,
+                   "bench: %zu frames in %.3f s: %.0f frames/s, %.0f MB/s (%s)\n", frames, seconds,
+                   frames / seconds, bytes / seconds / 1e6, PeakExtractor::SimdTarget().c_str());
     }
   }
   if (o.json) std::printf("%s\n", results.dump(2).c_str());
@@ -150,16 +158,22 @@ void Run(const PeaksOptions& o) {
 
 void AddPeaksCommand(CLI::App& app) {
   auto options = std::make_shared<PeaksOptions>();
-  auto* cmd = app.add_subcommand("peaks", "Run the on-device laser peak extractor on PNG/PGM frames");
-  cmd->add_option("IMAGE", options->images, "Frames (8-bit PNG or PGM)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--board", options->board, "Take the extractor parameters from this board.json's \"peaks\"")
+  auto* cmd =
+      app.add_subcommand("peaks", "Run the on-device laser peak extractor on PNG/PGM frames");
+  cmd->add_option("IMAGE", options->images, "Frames (8-bit PNG or PGM)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--board", options->board,
+                  "Take the extractor parameters from this board.json's \"peaks\"")
       ->check(CLI::ExistingFile);
   cmd->add_option("--estimator", options->estimator, "Sub-pixel estimator (overrides the board)");
   cmd->add_option("--threshold", options->threshold, "Minimum peak above local background, DN")
       ->check(CLI::Range(0, 255));
-  cmd->add_flag("--csv", options->csv, "CSV: image,u,v,intensity,width,score (v sub-pixel, pixel centres integer)");
+  cmd->add_flag("--csv", options->csv,
+                "CSV: image,u,v,intensity,width,score (v sub-pixel, pixel centres integer)");
   cmd->add_flag("--json", options->json, "Machine-readable output");
-  cmd->add_option("--bench", options->bench, "Run extraction N times over the decoded frames; print frames/s and MB/s")
+  cmd->add_option("--bench", options->bench,
+                  "Run extraction N times over the decoded frames; print frames/s and MB/s")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--overlay", options->overlay, "Write the frame with detections drawn (PNG, 2x)");
   cmd->callback([options] { Run(*options); });

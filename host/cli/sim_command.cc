@@ -231,26 +231,30 @@ void Scan(const SimOptions& o) {
     ScanFileWriterOptions writer_options;
     writer_options.overwrite = true;
     ScanFileWriter writer(o.peaks, writer_options);
-    writer.Begin({{"device", "virtual-cabinet"},
-                  {"board", "virtual"},
-                  {"source", "mirrorscan sim scan"},
-                  {"scene", o.scene_path},
-                  {"calibration", scene.TrueCalibration()},
-                  {"cameras", cameras_json},
-                  {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
-                  {"slide_speed_mm_s", scene.lasers.speed_mm_s},
-                  {"start_time_ns", 0}});
+    writer.Begin(
+        {{"device", "virtual-cabinet"},
+         {"board", "virtual"},
+         {"source", "mirrorscan sim scan"},
+         {"scene", o.scene_path},
+         {"calibration", scene.TrueCalibration()},
+         {"cameras", cameras_json},
+         {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
+         {"slide_speed_mm_s", scene.lasers.speed_mm_s},
+         {"start_time_ns", 0}});
     size_t peak_count = 0;
     for (const FrameRecord& record : records) {
       writer.AppendFrame(record);
       peak_count += record.peaks.size();
     }
-    writer.Finish({{"frames", records.size()},
-                   {"peaks", peak_count},
-                   {"dropped_frames", 0},
-                   {"status", "complete"},
-                   {"end_time_ns", static_cast<int64_t>(std::llround(scene.FrameTime(scene.frames) * 1e9))}});
-    if (!o.json) std::printf("wrote %zu frames, %zu peaks to %s\n", records.size(), peak_count, o.peaks.c_str());
+    writer.Finish(
+        {{"frames", records.size()},
+         {"peaks", peak_count},
+         {"dropped_frames", 0},
+         {"status", "complete"},
+         {"end_time_ns", static_cast<int64_t>(std::llround(scene.FrameTime(scene.frames) * 1e9))}});
+    if (!o.json)
+      std::printf("wrote %zu frames, %zu peaks to %s\n", records.size(), peak_count,
+                  o.peaks.c_str());
   }
 
   if (!o.contact_sheet.empty()) {
