@@ -179,9 +179,23 @@ void Scan(const SimOptions& o) {
         const double t = scene.FrameTime(frame);
         const cv::Mat image =
             ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
-        std::ostringstream name;
-        name << "frame_" << std::setw(6) << std::setfill('0') << frame << ".png";
-        WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
+        if (!o.no_images) {
+          std::ostringstream name;
+          name << "frame_" << std::setw(6) << std::setfill('0') << frame << ".png";
+          WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
+        }
+        if (!o.peaks.empty()) {
+          FrameRecord& record = records[job];
+          record.camera = static_cast<uint8_t>(camera);
+          record.lasers_on = !o.no_lasers;
+          record.sequence = static_cast<uint32_t>(frame);
+          record.timestamp_ns = static_cast<int64_t>(std::llround(t * 1e9));
+          // The virtual drive's position readback: laser 0's height, exact.
+          record.slide_position_mm = scene.lasers.HeightAt(0, t);
+          ExtractPeaks(
+              ImageView{image.data, image.cols, image.rows, static_cast<ptrdiff_t>(image.step[0])},
+              peak_params, &extractor, &record.peaks);
+        }
         if (!o.contact_sheet.empty() && frame % sheet_step == 0 && frame / sheet_step < 12) {
           sheet_frames[which * 12 + frame / sheet_step] = image;
         }
@@ -340,6 +354,12 @@ void AddSimCommands(CLI::App& app) {
   scan->add_flag("--no-noise", options->no_noise, "Noise-free sensor");
   scan->add_option("--contact-sheet", options->contact_sheet,
                    "Write a PNG with 12 frames per camera");
+  scan->add_option("--peaks", options->peaks,
+                   "Also extract laser peaks from every frame into this .mscan archive");
+  scan->add_option("--board", options->board,
+                   "Peak extractor parameters from this board.json (its \"peaks\" object)")
+      ->check(CLI::ExistingFile);
+  scan->add_flag("--no-images", options->no_images, "Do not write PNG frames (e.g. with --peaks)");
   scan->add_flag("--json", options->json, "Machine-readable output");
   scan->callback([options] { Scan(*options); });
 }

@@ -1,0 +1,120 @@
+// The mirrorscan command line end to end: sim scan --peaks writes a complete archive;
+// peaks --csv prints what the extractor finds; bad input gives one clear line.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/peaks/peaks.h"
+#include "common/scan_format/scan_format.h"
+
+namespace mirrorscan {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+Result RunMirrorscan(const std::string& arguments) {
+  const std::string command =
+      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string output;
+  std::array<char, 4096> buffer;
+  while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+std::string Scene(const std::string& name) {
+  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
+}
+
+fs::path TempDir(const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("mirrorscan_cli_test_" + name + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+TEST(CliTest, SimScanWritesACompletePeakArchive) {
+  const fs::path dir = TempDir("scan");
+  const Result r =
+      RunMirrorscan("sim scan --scene " + Scene("cylinder") + " --out " + dir.string() +
+                    " --frames 4 --peaks " + (dir / "scan.mscan").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const ScanArchive archive = ReadScanFile(dir / "scan.mscan");
+  EXPECT_TRUE(archive.report.complete) << archive.report.message;
+  ASSERT_EQ(archive.frames.size(), 8u);  // 4 frames × 2 cameras, in order
+  size_t peaks = 0;
+  for (size_t i = 0; i < archive.frames.size(); ++i) {
+    const FrameRecord& f = archive.frames[i];
+    EXPECT_EQ(f.sequence, i / 2);
+    EXPECT_EQ(f.camera, i % 2);
+    EXPECT_TRUE(f.lasers_on);
+    EXPECT_NEAR(f.slide_position_mm, -50.0 + 150.0 * (i / 2) / 30.0, 1e-9);
+    peaks += f.peaks.size();
+  }
+  EXPECT_GT(peaks, 1000u);
+  EXPECT_EQ(archive.footer->at("peaks").get<size_t>(), peaks);
+  EXPECT_TRUE(fs::exists(dir / "upper" / "frame_000003.png"));
+  fs::remove_all(dir);
+}
+
+TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
+  const fs::path dir = TempDir("peaks");
+  ASSERT_EQ(RunMirrorscan("sim render --scene " + Scene("mannequin") + " --out " + dir.string() +
+                          " --camera lower")
+                .exit_code,
+            0);
+  const fs::path image = dir / "lower_frame150.png";
+  const Result r = RunMirrorscan("peaks --csv " + image.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::istringstream lines(r.output);
+  std::string line;
+  std::getline(lines, line);
+  EXPECT_EQ(line, "image,u,v,intensity,width,score");
+  const cv::Mat pixels = cv::imread(image.string(), cv::IMREAD_GRAYSCALE);
+  const auto expected =
+      ExtractPeaks(ImageView{pixels.data, pixels.cols, pixels.rows, pixels.cols}, PeakParams());
+  size_t n = 0;
+  while (std::getline(lines, line)) {
+    ASSERT_LT(n, expected.size());
+    unsigned u;
+    double v;
+    ASSERT_EQ(std::sscanf(line.c_str() + image.string().size() + 1, "%u,%lf", &u, &v), 2) << line;
+    EXPECT_EQ(u, expected[n].u);
+    EXPECT_NEAR(v, expected[n].v, 1e-4);
+    ++n;
+  }
+  EXPECT_EQ(n, expected.size());
+  EXPECT_GT(n, 500u);
+  fs::remove_all(dir);
+}
+
+TEST(CliTest, BadInputGivesOneClearLineAndNonZeroExit) {
+  const fs::path dir = TempDir("bad");
+  std::ofstream(dir / "bad.json") << R"({"lasers": {"count": 9}})";
+  Result r =
+      RunMirrorscan("sim render --scene " + (dir / "bad.json").string() + " --out " + dir.string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_EQ(r.output, "mirrorscan: " + (dir / "bad.json").string() +
+                          ": lasers.count: must be in [1, 3], got 9\n");
+  std::ofstream(dir / "not.png") << "not an image";
+  r = RunMirrorscan("peaks " + (dir / "not.png").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.output.find("cannot read the image"), std::string::npos) << r.output;
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mirrorscan
