@@ -77,7 +77,9 @@ TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
                 .exit_code,
             0);
   const fs::path image = dir / "lower_frame150.png";
-  const Result r = RunMirrorscan("peaks --csv " + image.string());
+  // The virtual board's parameters are the extractor's defaults.
+  const Result r = RunMirrorscan("peaks --csv --board " + std::string(MIRRORSCAN_SOURCE_DIR) +
+                                 "/boards/virtual/board.json " + image.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::istringstream lines(r.output);
   std::string line;

@@ -32,12 +32,7 @@ struct PeaksOptions {
 };
 
 PeakParams LoadParams(const PeaksOptions& o) {
-  PeakParams params;
-  if (!o.board.empty()) {
-    const nlohmann::json board = JsonReader::ParseFile(o.board);
-    const JsonReader root(board, o.board);
-    if (root.Has("peaks")) params = PeakParams::FromJson(root.Object("peaks"));
-  }
+  PeakParams params = o.board.empty() ? PeakParams() : PeakParamsFromBoard(o.board);
   if (!o.estimator.empty()) {
     bool found = false;
     std::string names;
@@ -155,6 +150,12 @@ void Run(const PeaksOptions& o) {
 }
 
 }  // namespace
+
+PeakParams PeakParamsFromBoard(const std::string& board_json) {
+  const nlohmann::json board = JsonReader::ParseFile(board_json);
+  const JsonReader root(board, board_json);
+  return root.Has("peaks") ? PeakParams::FromJson(root.Object("peaks")) : PeakParams();
+}
 
 void AddPeaksCommand(CLI::App& app) {
   auto options = std::make_shared<PeaksOptions>();

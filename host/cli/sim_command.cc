@@ -20,6 +20,7 @@
 #include "common/config/json_reader.h"
 #include "common/peaks/peaks.h"
 #include "common/scan_format/scan_format.h"
+#include "host/cli/peaks_command.h"
 
 namespace mirrorscan::cli {
 
@@ -158,12 +159,7 @@ void Scan(const SimOptions& o) {
     }
   }
   const int sheet_step = std::max(1, scene.frames / 12);
-  PeakParams peak_params;
-  if (!o.board.empty()) {
-    const nlohmann::json board = JsonReader::ParseFile(o.board);
-    const JsonReader root(board, o.board);
-    if (root.Has("peaks")) peak_params = PeakParams::FromJson(root.Object("peaks"));
-  }
+  const PeakParams peak_params = o.board.empty() ? PeakParams() : PeakParamsFromBoard(o.board);
   // Frames render out of order on several threads; records are kept by job and written
   // in order once the sweep is done.
   std::vector<FrameRecord> records(o.peaks.empty() ? 0 : total);
