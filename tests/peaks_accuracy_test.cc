@@ -1,6 +1,7 @@
 // The on-device peak extractor against the virtual cabinet's ground truth: every
 // estimator on rendered frames of the mannequin and the cuboid, under the default sensor
 // model, read noise σ 5 DN, saturated stripes and a noise-free sensor.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -30,6 +31,7 @@ struct Condition {
 
 struct Figures {
   double rms = 0, bias = 0, recall = 0, false_per_frame = 0;
+  double unlit_false_per_frame = 0;  // false peaks with no laser light at all at the pixel
   int accuracy_peaks = 0, recall_peaks = 0, frames = 0;
 };
 
@@ -60,7 +62,7 @@ Figures Evaluate(const Renderer& renderer, const PeakParams& params,
                  const std::vector<double>& times) {
   Figures f;
   double sum = 0, sum2 = 0;
-  int found = 0, wanted = 0, false_peaks = 0;
+  int found = 0, wanted = 0, false_peaks = 0, unlit_false_peaks = 0;
   PeakExtractor extractor;
   std::vector<Peak> peaks;
   for (int camera = 0; camera < static_cast<int>(renderer.scene().cameras.size()); ++camera) {
@@ -69,6 +71,10 @@ Figures Evaluate(const Renderer& renderer, const PeakParams& params,
       ExtractPeaks(ImageView{image.pixels.data(), image.width, image.height, image.width}, params,
                    &extractor, &peaks);
       const auto truth = renderer.Truth(camera, t);
+      // The laser's own light, noise-free: tells a false peak on real light (a stripe's
+      // tip or end, where the truth curve does not cross the column) from one on none.
+      const virtual_cabinet::FloatImage lit = renderer.RenderRadiance(camera, t, true);
+      const virtual_cabinet::FloatImage dark = renderer.RenderRadiance(camera, t, false);
       std::map<int, std::vector<double>> by_column;
       std::map<std::tuple<int, int, int>, std::vector<double>> by_stripe_column;
       for (const auto& p : truth) {
@@ -106,7 +112,11 @@ Figures Evaluate(const Renderer& renderer, const PeakParams& params,
           if (it == by_column.end()) continue;
           for (double v : it->second) explained = explained || std::abs(v - p.v) < 2.0;
         }
-        if (!explained) ++false_peaks;
+        if (!explained) {
+          ++false_peaks;
+          const int row = std::clamp(static_cast<int>(std::lround(p.v)), 0, image.height - 1);
+          if (lit.at(p.u, row) - dark.at(p.u, row) < 0.5 * params.threshold_dn) ++unlit_false_peaks;
+        }
       }
       ++f.frames;
     }
@@ -116,6 +126,7 @@ Figures Evaluate(const Renderer& renderer, const PeakParams& params,
   f.recall = wanted ? static_cast<double>(found) / wanted : 0.0;
   f.recall_peaks = wanted;
   f.false_per_frame = static_cast<double>(false_peaks) / std::max(1, f.frames);
+  f.unlit_false_per_frame = static_cast<double>(unlit_false_peaks) / std::max(1, f.frames);
   return f;
 }
 
@@ -156,13 +167,13 @@ const std::map<std::string, std::map<std::string, Figures>>& Table() {
   static const auto table = [] {
     auto t = RunAll();
     std::printf(
-        "| condition | estimator | RMS px | bias px | recall | false/frame | peaks "
-        "|\n|---|---|---|---|---|---|---|\n");
+        "| condition | estimator | RMS px | bias px | recall | false/frame | of which unlit | "
+        "peaks |\n|---|---|---|---|---|---|---|---|\n");
     for (const auto& [condition, row] : t) {
       for (const auto& [estimator, f] : row) {
-        std::printf("| %s | %s | %.4f | %+.4f | %.2f %% | %.2f | %d |\n", condition.c_str(),
+        std::printf("| %s | %s | %.4f | %+.4f | %.2f %% | %.2f | %.2f | %d |\n", condition.c_str(),
                     estimator.c_str(), f.rms, f.bias, 100 * f.recall, f.false_per_frame,
-                    f.accuracy_peaks);
+                    f.unlit_false_per_frame, f.accuracy_peaks);
       }
     }
     return t;
@@ -170,29 +181,36 @@ const std::map<std::string, std::map<std::string, Figures>>& Table() {
   return table;
 }
 
-// Bounds at what the extractor reaches today on rendered frames, so a regression fails.
-// The product targets are tighter (default sensor: RMS 0.03 px, 1 false peak per frame;
-// noise-free 0.01 px; σ 5 DN 0.06 px) and are not met yet: the mirror views' stripes are
-// dim and their profiles flat-topped (a pixel there spans more than the 1 mm sheet), and
-// stripes cut by occluding edges give truncated peaks. See docs/peak-extraction.md.
+// Issue targets where they are met (default sensor: |bias| <= 0.005 px, recall >= 99.5 %,
+// <= 1 false peak per frame; saturated <= 0.05 px), otherwise bounds just above what the
+// extractor reaches today, so a regression fails. Not met, and why
+// (docs/peak-extraction.md): default RMS 0.03 px is below what the sensor model allows
+// per column (the Cramer-Rao bound over these peaks, from the noise alone, is 0.032 px
+// RMS; gaussian3 reaches 0.043 px); noise-free 0.01 px, because at stripe tips and bends
+// the image's own brightness centroid is off the truth curve (0.015-0.022 px RMS per view
+// on the noise-free float image); sigma 5 DN 0.06 px is noise-bound too.
 TEST(PeaksAccuracyTest, DefaultEstimatorOnRenderedFrames) {
   const std::string best = ToString(PeakParams().estimator);
   const Figures& f = Table().at(Conditions()[0].name).at(best);
   EXPECT_GT(f.accuracy_peaks, 5000);
-  EXPECT_LE(f.rms, 0.05);
+  EXPECT_LE(f.rms, 0.045);
   EXPECT_LE(std::abs(f.bias), 0.005);
   EXPECT_GE(f.recall, 0.995);
-  EXPECT_LE(f.false_per_frame, 4.0);
+  EXPECT_LE(f.false_per_frame, 1.0);
 }
 
 TEST(PeaksAccuracyTest, HarderConditions) {
   const std::string best = ToString(PeakParams().estimator);
-  EXPECT_LE(Table().at(Conditions()[1].name).at(best).rms, 0.085);  // σ 5 DN
+  const Figures& sigma5 = Table().at(Conditions()[1].name).at(best);
+  EXPECT_LE(sigma5.rms, 0.082);
+  EXPECT_LE(sigma5.false_per_frame, 2.0);  // was 146 before the both-sides rise test
   EXPECT_LE(Table().at(Conditions()[2].name).at(best).rms, 0.05);   // saturated
-  EXPECT_LE(Table().at(Conditions()[3].name).at(best).rms, 0.025);  // noise-free
+  EXPECT_LE(Table().at(Conditions()[3].name).at(best).rms, 0.016);  // noise-free
   for (const auto& c : Conditions()) {
     EXPECT_GE(Table().at(c.name).at(best).recall, 0.985) << c.name;
     EXPECT_LE(std::abs(Table().at(c.name).at(best).bias), 0.005) << c.name;
+    // Whatever the geometry, no false peak where there is no laser light at all.
+    EXPECT_LE(Table().at(c.name).at(best).unlit_false_per_frame, 1.25) << c.name;
   }
 }
 

@@ -16,6 +16,7 @@ namespace {
 
 constexpr double kTraceEpsilon = 1e-3;   // mm; keeps secondary rays off their own surface
 constexpr double kMaxGradientMm = 10.0;  // laser-plane distance spanned by one pixel, capped
+constexpr int kSub = 8;  // slices per pixel along v for the laser's blur (see LaserImage)
 
 // Deterministic per-frame random numbers (SplitMix64), so frames render in any order or
 // in parallel and a seed always gives the same images.
@@ -59,14 +60,11 @@ uint64_t MixSeed(uint64_t a, uint64_t b, uint64_t c) {
   return r.Next();
 }
 
-// Mean of the sheet profile exp(-s²/2σ²) over a pixel whose plane distance runs
-// linearly from s - span/2 to s + span/2.
-double BoxedProfile(double s, double span, double sigma) {
-  span = std::abs(span);
-  if (span < 1e-3 * sigma) return std::exp(-0.5 * s * s / (sigma * sigma));
+// Fraction of a Gaussian blur (sigma in px) centred at offset x from a pixel's centre
+// that falls into that pixel.
+double PixelIntegral(double x, double sigma) {
   const double k = 1.0 / (std::numbers::sqrt2 * sigma);
-  return (std::erf((s + 0.5 * span) * k) - std::erf((s - 0.5 * span) * k)) *
-         (sigma * std::sqrt(std::numbers::pi / 2.0)) / span;
+  return 0.5 * (std::erf((x + 0.5) * k) - std::erf((x - 0.5) * k));
 }
 
 View ViewFromPath(const std::vector<int>& path) {
@@ -124,7 +122,7 @@ std::vector<int> MirrorPath(View view) {
 struct Renderer::CameraCache {
   struct LaserPixel {
     double w;    // laser normal · surface point (mm)
-    float span;  // change of w across the pixel along v, capped
+    float span;  // change of w from the pixel's top edge to its bottom edge, signed, capped
     float gain;  // DN at the sheet's centre, before speckle
     uint32_t index;
   };
@@ -294,7 +292,7 @@ void Renderer::BuildCache(int camera) const {
         const auto left = on_tangent({u - 0.5, v}), right = on_tangent({u + 0.5, v});
         double span = kMaxGradientMm, footprint = 1.0;
         if (up && down && left && right) {
-          span = std::min(kMaxGradientMm, std::abs(laser_normal.dot(*down - *up)));
+          span = std::clamp(laser_normal.dot(*down - *up), -kMaxGradientMm, kMaxGradientMm);
           footprint = std::sqrt(std::max(1e-6, (*down - *up).cross(*right - *left).norm()));
         }
         const double albedo = Albedo(s.hit, footprint);
@@ -316,7 +314,7 @@ void Renderer::BuildCache(int camera) const {
                      cv::BORDER_REPLICATE);
   cache->base = base;
   for (auto& row : lit_rows) {
-    for (const auto& p : row) cache->max_span = std::max<double>(cache->max_span, p.span);
+    for (const auto& p : row) cache->max_span = std::max<double>(cache->max_span, std::abs(p.span));
     cache->lit.insert(cache->lit.end(), row.begin(), row.end());
   }
   std::sort(cache->lit.begin(), cache->lit.end(),
@@ -324,52 +322,113 @@ void Renderer::BuildCache(int camera) const {
   caches_[camera] = std::move(cache);
 }
 
-GrayImage Renderer::RenderFrame(int camera, double t, uint64_t frame_index, bool lasers_on) const {
+cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speckle_seed) const {
   const CameraCache& cache = Cache(camera);
   const Sensor& sensor = scene_.sensor;
   const Lasers& lasers = scene_.lasers;
-  FrameRandom random(MixSeed(scene_.seed, static_cast<uint64_t>(camera), frame_index));
 
   cv::Mat laser(cache.height, cache.width, CV_32F, cv::Scalar(0));
   int row_min = cache.height, row_max = -1;
-  if (lasers_on) {
-    const double sigma = lasers.sheet_sigma_mm;
-    const double reach = 6.0 * sigma + 0.5 * cache.max_span;
-    // Speckle: a gamma-distributed factor (mean 1, contrast C) per column and laser,
-    // so it varies along the stripe but not across it.
-    const double contrast = sensor.noise ? sensor.speckle_contrast : 0.0;
-    std::vector<float> speckle(static_cast<size_t>(cache.width) * lasers.count, 1.0f);
-    if (contrast > 0) {
-      std::mt19937_64 engine(random.Next());
-      const double shape = 1.0 / (contrast * contrast);
-      std::gamma_distribution<double> gamma(shape, 1.0 / shape);
-      for (auto& s : speckle) s = static_cast<float>(gamma(engine));
-    }
-    for (int k = 0; k < lasers.count; ++k) {
-      const double h = lasers.HeightAt(k, t);
-      auto it = std::lower_bound(cache.lit.begin(), cache.lit.end(), h - reach,
-                                 [](const auto& p, double w) { return p.w < w; });
-      for (; it != cache.lit.end() && it->w <= h + reach; ++it) {
-        const double s = it->w - h;
-        if (std::abs(s) > 6.0 * sigma + 0.5 * it->span) continue;
-        const int u = static_cast<int>(it->index % cache.width);
-        const int v = static_cast<int>(it->index / cache.width);
-        laser.at<float>(v, u) += static_cast<float>(it->gain * BoxedProfile(s, it->span, sigma)) *
-                                 speckle[static_cast<size_t>(k) * cache.width + u];
-        row_min = std::min(row_min, v);
-        row_max = std::max(row_max, v);
-      }
-    }
-    if (row_max >= 0 && sensor.blur_px > 0) {
-      const int margin = static_cast<int>(std::ceil(4 * sensor.blur_px)) + 1;
-      const int r0 = std::max(0, row_min - margin),
-                r1 = std::min(cache.height, row_max + margin + 1);
-      cv::Mat band = laser.rowRange(r0, r1);
-      cv::GaussianBlur(band.clone(), band, cv::Size(0, 0), sensor.blur_px, sensor.blur_px,
-                       cv::BORDER_CONSTANT);
+  const double sigma = lasers.sheet_sigma_mm;
+  const double reach = 6.0 * sigma + 0.5 * cache.max_span;
+  // Speckle: a gamma-distributed factor (mean 1, contrast C) per column and laser,
+  // so it varies along the stripe but not across it.
+  const double contrast = speckle_seed ? sensor.speckle_contrast : 0.0;
+  std::vector<float> speckle(static_cast<size_t>(cache.width) * lasers.count, 1.0f);
+  if (contrast > 0) {
+    std::mt19937_64 engine(*speckle_seed);
+    const double shape = 1.0 / (contrast * contrast);
+    std::gamma_distribution<double> gamma(shape, 1.0 / shape);
+    for (auto& s : speckle) s = static_cast<float>(gamma(engine));
+  }
+  // The lens blurs the continuous image before the pixels integrate it. Where a pixel
+  // spans more than the sheet (mirror views), the stripe is narrower than a pixel, and
+  // blurring pixel means with a sampled kernel would alias: a phase-dependent profile
+  // shape that no camera produces. So along v each pixel is cut into kSub slices (the
+  // sheet integrated exactly over each), and each slice is spread over the rows below and
+  // above by the exact pixel integral of the Gaussian blur. Along u the stripe is wide and
+  // the sampled kernel is fine.
+  const double blur = sensor.blur_px;
+  const int radius = blur > 0 ? static_cast<int>(std::ceil(4.0 * blur)) : 0;
+  const int taps = 2 * radius + 1;
+  std::vector<float> spread(static_cast<size_t>(kSub) * taps, 0.0f);
+  for (int i = 0; i < kSub; ++i) {
+    const double y = -0.5 + (i + 0.5) / kSub;  // slice centre, pixel units
+    for (int j = -radius; j <= radius; ++j) {
+      spread[static_cast<size_t>(i) * taps + j + radius] =
+          blur > 0 ? static_cast<float>(PixelIntegral(j - y, blur)) : 1.0f;
     }
   }
+  double slice[kSub];
+  for (int k = 0; k < lasers.count; ++k) {
+    const double h = lasers.HeightAt(k, t);
+    auto it = std::lower_bound(cache.lit.begin(), cache.lit.end(), h - reach,
+                               [](const auto& p, double w) { return p.w < w; });
+    for (; it != cache.lit.end() && it->w <= h + reach; ++it) {
+      const double s = it->w - h;
+      if (std::abs(s) > 6.0 * sigma + 0.5 * std::abs(it->span)) continue;
+      const int u = static_cast<int>(it->index % cache.width);
+      const int v = static_cast<int>(it->index / cache.width);
+      const double gain = it->gain * speckle[static_cast<size_t>(k) * cache.width + u];
+      // Slice i covers w from s + span (i/kSub - 1/2) to s + span ((i+1)/kSub - 1/2);
+      // slice[i] is the sheet integrated over it, in pixel units (erf at shared edges).
+      if (std::abs(it->span) < 1e-3 * sigma) {
+        const double point = gain / kSub * std::exp(-0.5 * s * s / (sigma * sigma));
+        for (double& x : slice) x = point;
+      } else {
+        const double k_erf = 1.0 / (std::numbers::sqrt2 * sigma);
+        const double scale = gain * sigma * std::sqrt(std::numbers::pi / 2.0) / it->span;
+        double lower = std::erf((s - 0.5 * it->span) * k_erf);
+        for (int i = 0; i < kSub; ++i) {
+          const double upper =
+              std::erf((s + it->span * (static_cast<double>(i + 1) / kSub - 0.5)) * k_erf);
+          slice[i] = scale * (upper - lower);
+          lower = upper;
+        }
+      }
+      for (int j = -radius; j <= radius; ++j) {
+        const int row = v + j;
+        if (row < 0 || row >= cache.height) continue;
+        double sum = 0.0;
+        for (int i = 0; i < kSub; ++i)
+          sum += slice[i] * spread[static_cast<size_t>(i) * taps + j + radius];
+        laser.at<float>(row, u) += static_cast<float>(sum);
+      }
+      row_min = std::min(row_min, v - radius);
+      row_max = std::max(row_max, v + radius);
+    }
+  }
+  if (row_max >= 0 && blur > 0) {
+    const int r0 = std::max(0, row_min), r1 = std::min(cache.height, row_max + 1);
+    cv::Mat band = laser.rowRange(r0, r1);
+    const cv::Mat along_u = cv::getGaussianKernel(taps, blur, CV_32F);
+    const cv::Mat none = (cv::Mat_<float>(1, 1) << 1.0f);
+    cv::sepFilter2D(band.clone(), band, CV_32F, along_u.t(), none, cv::Point(-1, -1), 0.0,
+                    cv::BORDER_CONSTANT);
+  }
+  return laser;
+}
 
+FloatImage Renderer::RenderRadiance(int camera, double t, bool lasers_on) const {
+  const CameraCache& cache = Cache(camera);
+  cv::Mat mean = cache.base.clone();
+  if (lasers_on) mean += LaserImage(camera, t, std::nullopt);
+  FloatImage image;
+  image.width = cache.width;
+  image.height = cache.height;
+  image.pixels.assign(mean.ptr<float>(0), mean.ptr<float>(0) + mean.total());
+  return image;
+}
+
+GrayImage Renderer::RenderFrame(int camera, double t, uint64_t frame_index, bool lasers_on) const {
+  const CameraCache& cache = Cache(camera);
+  const Sensor& sensor = scene_.sensor;
+  FrameRandom random(MixSeed(scene_.seed, static_cast<uint64_t>(camera), frame_index));
+  // The speckle seed is the frame's first random draw, as it always was.
+  std::optional<uint64_t> speckle_seed;
+  if (lasers_on && sensor.noise && sensor.speckle_contrast > 0) speckle_seed = random.Next();
+  const cv::Mat laser = lasers_on ? LaserImage(camera, t, speckle_seed)
+                                  : cv::Mat(cache.height, cache.width, CV_32F, cv::Scalar(0));
   GrayImage image;
   image.width = cache.width;
   image.height = cache.height;

@@ -11,6 +11,10 @@
 #include "boards/virtual/raytracer.h"
 #include "boards/virtual/scene.h"
 
+namespace cv {
+class Mat;
+}  // namespace cv
+
 namespace mirrorscan::virtual_cabinet {
 
 // How a camera ray reached the surface it sees: directly, or through one or two mirrors.
@@ -41,6 +45,13 @@ struct GrayImage {
   int width = 0, height = 0;
   std::vector<uint8_t> pixels;  // row-major
   uint8_t at(int u, int v) const { return pixels[static_cast<size_t>(v) * width + u]; }
+};
+
+// The mean signal in DN before noise, saturation and quantisation.
+struct FloatImage {
+  int width = 0, height = 0;
+  std::vector<float> pixels;  // row-major
+  float at(int u, int v) const { return pixels[static_cast<size_t>(v) * width + u]; }
 };
 
 // One point of the ground truth: where a laser stripe's centre crosses an image column.
@@ -75,6 +86,9 @@ class Renderer {
 
   // An 8-bit frame at slide time t (seconds). frame_index seeds the sensor noise.
   GrayImage RenderFrame(int camera, double t, uint64_t frame_index, bool lasers_on = true) const;
+  // The noise-free mean image of that frame (no speckle, noise, clipping or rounding), to
+  // check the image model against the truth without the sensor in the way.
+  FloatImage RenderRadiance(int camera, double t, bool lasers_on = true) const;
   // Stripe centres for every column each stripe crosses, in this camera at time t.
   std::vector<TruthPeak> Truth(int camera, double t) const;
 
@@ -82,6 +96,8 @@ class Renderer {
   struct CameraCache;
   const CameraCache& Cache(int camera) const;
   void BuildCache(int camera) const;
+  // Laser light only (CV_32F, blurred); speckle from the seed, none without one.
+  cv::Mat LaserImage(int camera, double t, std::optional<uint64_t> speckle_seed) const;
   double Albedo(const RayHit& hit, double footprint_mm) const;
 
   Scene scene_;

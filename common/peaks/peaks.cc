@@ -328,6 +328,29 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   if (!HalfMaxCrossings(s, first, last, n, half, &xl, &xr)) return false;
   const float width = xr - xl;
   if (width < params.min_width_px || width > params.max_width_px) return false;
+  // A line stands out on both sides. The background is the lower flank (so a neighbouring
+  // line does not hide this one), which also lets a noise spike on the bright side of an
+  // ambient step pass as a peak of the step's height: on rendered frames at read noise
+  // 5 DN those were ~99 % of all false peaks. So the top must also rise above the lowest
+  // sample on each side, out to 1.5 FWHM beyond the half-maximum crossing (a neighbouring
+  // line leaves a valley there, a step does not), by the threshold, or by 0.9 x the
+  // amplitude for a peak barely above it (that minimum is noise-biased low, and an
+  // isolated line falls to its background on both sides). Only needed where the flanks
+  // disagree: with a linear background a step lifts both sides alike.
+  if (!linear) {
+    const float top_s = std::max(s(first), s(last));
+    const int reach = std::max(2, static_cast<int>(std::ceil(1.5f * width)));
+    const int left_from = std::min(static_cast<int>(std::floor(xl)), first - 1);
+    const int right_from = std::max(static_cast<int>(std::ceil(xr)), last + 1);
+    float valley_left = top_s, valley_right = top_s;
+    for (int i = left_from; i >= std::max(0, left_from - reach); --i)
+      valley_left = std::min(valley_left, s(i));
+    for (int i = right_from; i <= std::min(n - 1, right_from + reach); ++i)
+      valley_right = std::min(valley_right, s(i));
+    if (top_s - std::max(valley_left, valley_right) < std::min(thr, 0.9f * amplitude)) {
+      return false;
+    }
+  }
   if (profile.flat_top || params.estimator == PeakEstimator::kWindowedCom ||
       params.estimator == PeakEstimator::kThresholdedCom) {
     // Estimator window: ~ +-2.7 sigma around the top, clipped where the signal rises
