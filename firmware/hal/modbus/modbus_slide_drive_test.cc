@@ -7,6 +7,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <ostream>
 #include <string>
 #include <thread>
 
@@ -105,6 +106,9 @@ struct Variant {
   bool low_word_first;  // position/target word order
   bool status_holding;  // status, fault code and position in holding registers
 };
+
+// Test names and ctest entries show the variant's name, not its bytes.
+void PrintTo(const Variant& variant, std::ostream* out) { *out << variant.name; }
 
 class ModbusSlideDriveTest : public ::testing::TestWithParam<Variant> {
  protected:
