@@ -30,11 +30,16 @@ void SlideDrive::Home(std::chrono::nanoseconds timeout, std::chrono::nanoseconds
                           "slide drive: homing interrupted by Stop()");
     }
     if (std::chrono::steady_clock::now() >= deadline) {
-      DoStop();
+      std::string stopped = "stopped";
+      try {
+        DoStop();
+      } catch (const HardwareError& e) {
+        stopped = std::string("stopping failed too: ") + e.what();
+      }
       throw HardwareError(HardwareError::Kind::kTimeout,
                           "slide drive: not homed after " +
                               std::to_string(std::chrono::duration<double>(timeout).count()) +
-                              " s (" + ToString(status) + "); stopped");
+                              " s (" + ToString(status) + "); " + stopped);
     }
     std::this_thread::sleep_for(poll);
   }

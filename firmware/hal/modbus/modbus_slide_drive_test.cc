@@ -73,7 +73,7 @@ DriveSimConfig SimConfigFor(const ModbusDriveConfig& c) {
   sim.model.max_mm = c.travel_max_mm;
   sim.model.max_speed_mm_s = c.max_speed_mm_s;
   sim.model.homing_speed_mm_s = 400.0;
-  sim.model.initial_position_mm = 60.0;
+  sim.model.initial_position_mm = 60.0;  // homing takes 150 ms
   sim.slave_id = c.slave_id;
   return sim;
 }
@@ -131,8 +131,10 @@ class ModbusSlideDriveTest : public ::testing::TestWithParam<Variant> {
     StartSim();
   }
 
-  void StartSim() {
-    const DriveSimConfig sim_config = SimConfigFor(config_);
+  void StartSim(double initial_position_mm = 60.0) {
+    sim_.reset();
+    DriveSimConfig sim_config = SimConfigFor(config_);
+    sim_config.model.initial_position_mm = initial_position_mm;
     if (GetParam().rtu) {
       sim_ = DriveSim::ServeRtu(sim_config);
       config_.transport = ModbusDriveConfig::Transport::kRtu;
@@ -256,6 +258,7 @@ TEST_P(ModbusSlideDriveTest, FaultMidMoveIsReportedWithItsCode) {
 }
 
 TEST_P(ModbusSlideDriveTest, HomingFaultTimeoutAndStopAreErrors) {
+  StartSim(1500.0);  // homing takes 3.75 s, far longer than the short timeout below
   auto drive = Connect();
   // Homing a disabled drive: the drive faults and Home() says so with the code.
   std::string message;
@@ -263,7 +266,7 @@ TEST_P(ModbusSlideDriveTest, HomingFaultTimeoutAndStopAreErrors) {
   EXPECT_EQ(message, "slide drive: fault 16 while homing");
   drive->ResetFault();
   drive->Enable(true);
-  // Homing takes 150 ms (60 mm at 400 mm/s); a 20 ms timeout stops the drive.
+  // A 20 ms timeout stops the drive.
   EXPECT_EQ(KindOf([&] { drive->Home(milliseconds(20)); }), HardwareError::Kind::kTimeout);
   EXPECT_FALSE(sim_->State().model.moving);
   EXPECT_FALSE(sim_->State().model.homed);
