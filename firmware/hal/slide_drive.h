@@ -9,7 +9,7 @@
 
 namespace mirrorscan::hal {
 
-// What the drive says about itself (one consistent snapshot from one read).
+// What the drive says about itself.
 struct SlideStatus {
   bool enabled = false;
   bool homed = false;
@@ -60,7 +60,8 @@ class SlideDrive {
     DoStop();
   }
 
-  // Clears a latched fault (the drive stays disabled until Enable(true)).
+  // Clears a latched fault. Whether the drive also needs Enable(true) again depends on
+  // the drive; the simulated one keeps its enable level.
   virtual void ResetFault() = 0;
 
   // The position readback in mm.
