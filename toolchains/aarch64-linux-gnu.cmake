@@ -14,4 +14,10 @@ set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE BOTH)
 set(CMAKE_FIND_ROOT_PATH_MODE_PACKAGE BOTH)
 set(ENV{PKG_CONFIG_LIBDIR} "/usr/lib/aarch64-linux-gnu/pkgconfig:/usr/share/pkgconfig")
 
-set(CMAKE_CROSSCOMPILING_EMULATOR qemu-aarch64;-L;/usr/aarch64-linux-gnu)
+# -L makes qemu load the cross ld.so (libc6-arm64-cross), but ld.so then finds libc.so.6 in
+# /lib/aarch64-linux-gnu, the multiarch libc6:arm64: a different glibc build. That mixed
+# pair runs single-threaded programs and hangs (spinning) in the first pthread_create.
+# LD_LIBRARY_PATH keeps ld.so and libc from the same (cross) build; the other arm64
+# libraries (libmodbus, ...) still come from the multiarch directories.
+set(CMAKE_CROSSCOMPILING_EMULATOR
+    qemu-aarch64;-L;/usr/aarch64-linux-gnu;-E;LD_LIBRARY_PATH=/usr/aarch64-linux-gnu/lib)
