@@ -113,13 +113,16 @@ LedPhase LedPhaseAt(LedPattern pattern, int64_t elapsed_ns) {
     case LedPattern::kOn:
       return {true, kNever};
     case LedPattern::kBlinkSlow:
-      seg = kSlow, n = 2;
+      seg = kSlow;
+      n = 2;
       break;
     case LedPattern::kBlinkFast:
-      seg = kFast, n = 2;
+      seg = kFast;
+      n = 2;
       break;
     case LedPattern::kFault:
-      seg = kFault, n = 4;
+      seg = kFault;
+      n = 4;
       break;
   }
   int64_t period = 0;
