@@ -1,0 +1,33 @@
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "firmware/hal/gpio_config.h"
+#include "firmware/hal/gpio_devices.h"
+
+namespace mirrorscan::hal {
+
+// The lines of one board, requested and owned, with their polarity.
+struct GpioLines {
+  std::vector<OwnedGpioLine> lasers;  // index = laser number
+  OwnedGpioLine led;
+  OwnedGpioLine button;
+};
+
+// Requests every line of `config` from `backend` (normally config.backend). Outputs start
+// at their inactive level (lasers off, LED dark). kGpiod failing is a HardwareError
+// naming chip and line: never a silent fallback to kVirtual. With kVirtual the lines are
+// VirtualGpioLine (firmware/hal/virtual), named "laser[i]", "led", "button"; the button
+// idles released.
+GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend);
+
+// The devices built on those lines.
+struct GpioDevices {
+  std::unique_ptr<GpioLaserBank> lasers;
+  std::unique_ptr<GpioLed> led;
+  std::unique_ptr<GpioButton> button;
+};
+GpioDevices MakeGpioDevices(const GpioConfig& config, GpioLines lines);
+
+}  // namespace mirrorscan::hal
