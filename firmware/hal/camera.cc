@@ -186,10 +186,9 @@ void ThreadedCamera::Run() {
         std::unique_lock lock(wake_mutex_);
         if (wake_.wait_until(lock, next, [&] { return stop_.load(); })) break;
       }
-      // The sensor keeps its rhythm; a late frame starts the next period from now.
-      const auto exposed = paced ? next : Clock::now();
-      const int64_t timestamp_ns =
-          std::chrono::duration_cast<std::chrono::nanoseconds>(exposed.time_since_epoch()).count();
+      // The sensor keeps its rhythm; a late frame starts the next period from now. Unpaced
+      // (fps 0), a frame is exposed once a buffer is free.
+      auto exposed = next;
       if (paced) next = std::max(next + period, Clock::now());
 
       const Produced plan = Plan(sequence);
@@ -211,6 +210,9 @@ void ThreadedCamera::Run() {
         ++sequence;
         continue;
       }
+      if (!paced) exposed = Clock::now();
+      const int64_t timestamp_ns =
+          std::chrono::duration_cast<std::chrono::nanoseconds>(exposed.time_since_epoch()).count();
       Produced produced;
       try {
         produced = Produce(sequence, timestamp_ns, pool_->pixels(*buffer));

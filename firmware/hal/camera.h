@@ -103,6 +103,8 @@ class Camera {
   // Prompt (within one frame's work), idempotent, never throws.
   virtual void Stop() = 0;
 
+  // From Start() until Stop(), also after the stream ended by itself (call Stop() before
+  // starting again).
   virtual bool streaming() const = 0;
   // Frames lost since Start() because no buffer was free (or injected by a simulation).
   virtual uint64_t dropped() const = 0;

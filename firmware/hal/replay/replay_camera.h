@@ -33,9 +33,9 @@ struct ReplayOptions {
 // dropped for want of a buffer skips its file, as a live camera would lose it. Without
 // looping the stream ends after the last file (end callback with nullptr).
 //
-// PGM only: the board has no PNG decoder. Images from `mirrorscan sim scan` (PNG) convert
-// with any tool, e.g. `convert in.png -depth 8 out.pgm` (ImageMagick) or
-// `pngtopnm in.png > out.pgm` (netpbm).
+// PGM only: the board has no PNG decoder. `mirrorscan sim scan --pgm` writes its frames
+// as PGM; its PNGs convert with any tool, e.g. `convert in.png -depth 8 out.pgm`
+// (ImageMagick) or `pngtopnm in.png > out.pgm` (netpbm).
 //
 // Start() lists the directory and checks every file's header, so a missing directory, no
 // files, a file that is not an 8-bit P5 PGM, or a size other than the configured one is a
