@@ -47,6 +47,7 @@ struct SimOptions {
   std::string peaks;  // .mscan archive of the sweep's peaks
   std::string board;  // peak extractor parameters from this board.json
   bool no_images = false;
+  bool pgm = false;  // frames as binary PGM (what the replay camera plays) instead of PNG
 };
 
 cv::Mat ToMat(const GrayImage& image) {
@@ -177,7 +178,8 @@ void Scan(const SimOptions& o) {
             ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
         if (!o.no_images) {
           std::ostringstream name;
-          name << "frame_" << std::setw(6) << std::setfill('0') << frame << ".png";
+          name << "frame_" << std::setw(6) << std::setfill('0') << frame
+               << (o.pgm ? ".pgm" : ".png");
           WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
         }
         if (!o.peaks.empty()) {
@@ -356,6 +358,8 @@ void AddSimCommands(CLI::App& app) {
                    "Peak extractor parameters from this board.json (its \"peaks\" object)")
       ->check(CLI::ExistingFile);
   scan->add_flag("--no-images", options->no_images, "Do not write PNG frames (e.g. with --peaks)");
+  scan->add_flag("--pgm", options->pgm,
+                 "Write frames as 8-bit binary PGM (P5), which the firmware's replay camera plays");
   scan->add_flag("--json", options->json, "Machine-readable output");
   scan->callback([options] { Scan(*options); });
 }
