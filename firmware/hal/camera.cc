@@ -15,12 +15,6 @@ namespace {
 
 }  // namespace
 
-int64_t SteadyNowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 void CameraConfig::Validate() const {
   if (width < 16 || width > 16384) Invalid("width", "must be 16..16384");
   if (height < 16 || height > 16384) Invalid("height", "must be 16..16384");

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/peaks/peaks.h"
+#include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
 
 namespace mirrorscan::hal {
@@ -192,8 +193,5 @@ class ThreadedCamera : public Camera {
   std::condition_variable wake_;
   std::atomic<uint64_t> dropped_{0};
 };
-
-// Steady clock now in nanoseconds (the clock of Frame::timestamp_ns).
-int64_t SteadyNowNs();
 
 }  // namespace mirrorscan::hal

@@ -7,12 +7,6 @@
 
 namespace mirrorscan::hal {
 
-int64_t SteadyNowNs() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 std::string ToString(LedPattern pattern) {
   switch (pattern) {
     case LedPattern::kOff:

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "firmware/hal/button.h"
+#include "firmware/hal/clock.h"
 #include "firmware/hal/debouncer.h"
 #include "firmware/hal/gpio_line.h"
 #include "firmware/hal/laser_bank.h"
@@ -21,7 +22,6 @@ namespace mirrorscan::hal {
 
 // Integer nanoseconds on the steady clock (the clock of GPIO edge timestamps).
 using NowFn = std::function<int64_t()>;
-int64_t SteadyNowNs();
 
 // A GPIO output or input with its polarity, as the devices below take it.
 struct OwnedGpioLine {
