@@ -1,0 +1,595 @@
+#include "firmware/store/scan_store.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <ctime>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <system_error>
+#include <utility>
+
+namespace mirrorscan::store {
+
+namespace fs = std::filesystem;
+
+namespace internal {
+
+struct StoreState {
+  fs::path dir;
+  ScanStoreOptions options;
+  mutable std::mutex mu;
+  std::map<std::string, ScanHandle*> active;  // guarded by mu
+  std::string last_id;                        // guarded by mu
+};
+
+}  // namespace internal
+
+namespace {
+
+constexpr size_t kIdLength = 21;  // YYYYMMDDTHHMMSSZ-NNNN
+constexpr std::string_view kArchiveSuffix = ".mscan";
+constexpr std::string_view kPartialSuffix = ".mscan.partial";
+constexpr std::string_view kMetaSuffix = ".json";
+constexpr std::string_view kTmpSuffix = ".json.tmp";
+
+fs::path ArchivePath(const fs::path& dir, const std::string& id) {
+  return dir / (id + std::string(kArchiveSuffix));
+}
+fs::path PartialPath(const fs::path& dir, const std::string& id) {
+  return dir / (id + std::string(kPartialSuffix));
+}
+fs::path MetaPath(const fs::path& dir, const std::string& id) {
+  return dir / (id + std::string(kMetaSuffix));
+}
+
+[[noreturn]] void ThrowIo(const fs::path& path, const std::string& what, int err = errno) {
+  throw StoreError(StoreError::Kind::kIo, path.string() + ": " + what + ": " + std::strerror(err));
+}
+
+void SyncDir(const fs::path& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) ThrowIo(dir, "cannot open directory to sync it");
+  const int rc = ::fsync(fd);
+  const int err = errno;
+  ::close(fd);
+  if (rc != 0) ThrowIo(dir, "fsync", err);
+}
+
+// temp file, write, fsync, rename over path, fsync the directory.
+void WriteFileAtomically(const fs::path& path, const std::string& content) {
+  const fs::path tmp = path.string() + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) ThrowIo(tmp, "cannot create");
+  auto fail = [&](const char* what) {
+    const int err = errno;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    ThrowIo(tmp, what, err);
+  };
+  const char* data = content.data();
+  size_t left = content.size();
+  while (left > 0) {
+    const ssize_t n = ::write(fd, data, left);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write");
+    }
+    data += n;
+    left -= static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0) fail("fsync");
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    ThrowIo(tmp, "close", err);
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    ThrowIo(path, "rename", err);
+  }
+  SyncDir(path.parent_path());
+}
+
+bool EndsWith(std::string_view s, std::string_view suffix) {
+  return s.size() >= suffix.size() && s.substr(s.size() - suffix.size()) == suffix;
+}
+
+std::optional<ScanState> ParseState(std::string_view name) {
+  for (ScanState s : {ScanState::kWriting, ScanState::kComplete, ScanState::kAborted,
+                      ScanState::kFault, ScanState::kPartial}) {
+    if (ScanStateName(s) == name) return s;
+  }
+  return std::nullopt;
+}
+
+bool IsFinished(ScanState s) {
+  return s == ScanState::kComplete || s == ScanState::kAborted || s == ScanState::kFault;
+}
+
+// "20261124T025501Z-0001" -> "2026-11-24T02:55:01Z"
+std::string CreatedFromId(const std::string& id) {
+  return id.substr(0, 4) + "-" + id.substr(4, 2) + "-" + id.substr(6, 2) + "T" + id.substr(9, 2) +
+         ":" + id.substr(11, 2) + ":" + id.substr(13, 2) + "Z";
+}
+
+std::string FormatStamp(std::time_t t) {
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof(buf), "%Y%m%dT%H%M%SZ", &tm);
+  return buf;
+}
+
+std::time_t ParseStamp(const std::string& stamp) {
+  std::tm tm{};
+  tm.tm_year = std::stoi(stamp.substr(0, 4)) - 1900;
+  tm.tm_mon = std::stoi(stamp.substr(4, 2)) - 1;
+  tm.tm_mday = std::stoi(stamp.substr(6, 2));
+  tm.tm_hour = std::stoi(stamp.substr(9, 2));
+  tm.tm_min = std::stoi(stamp.substr(11, 2));
+  tm.tm_sec = std::stoi(stamp.substr(13, 2));
+  return timegm(&tm);
+}
+
+// The next id: the current second, or (when the clock is behind the newest id, e.g. a
+// board without RTC) the newest id's second with the counter advanced, so ids never
+// go backwards.
+std::string NextId(const internal::StoreState& state) {
+  const auto now = state.options.now ? state.options.now() : std::chrono::system_clock::now();
+  std::string stamp = FormatStamp(std::chrono::system_clock::to_time_t(now));
+  int counter = 1;
+  if (!state.last_id.empty() && stamp <= state.last_id.substr(0, 16)) {
+    stamp = state.last_id.substr(0, 16);
+    counter = std::stoi(state.last_id.substr(17)) + 1;
+    if (counter > 9999) {
+      stamp = FormatStamp(ParseStamp(stamp) + 1);
+      counter = 1;
+    }
+  }
+  char suffix[16];
+  std::snprintf(suffix, sizeof(suffix), "-%04d", counter);
+  return stamp + suffix;
+}
+
+std::optional<ScanInfo> InfoFromJson(const nlohmann::json& j) {
+  if (!j.is_object()) return std::nullopt;
+  try {
+    ScanInfo info;
+    info.id = j.at("id").get<std::string>();
+    const auto state = ParseState(j.at("state").get<std::string>());
+    if (!state || !IsValidScanId(info.id)) return std::nullopt;
+    info.state = *state;
+    info.reason = j.value("reason", "");
+    info.frames = j.value("frames", uint64_t{0});
+    info.peaks = j.value("peaks", uint64_t{0});
+    info.bytes = j.value("bytes", uint64_t{0});
+    info.created = j.value("created", CreatedFromId(info.id));
+    info.header = j.value("header", nlohmann::json::object());
+    info.footer = j.value("footer", nlohmann::json());
+    return info;
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  }
+}
+
+std::optional<ScanInfo> ReadMeta(const fs::path& dir, const std::string& id) {
+  std::error_code ec;
+  if (!fs::is_regular_file(MetaPath(dir, id), ec)) return std::nullopt;
+  try {
+    const auto archive_meta = MetaPath(dir, id);
+    std::FILE* f = std::fopen(archive_meta.c_str(), "rb");
+    if (f == nullptr) return std::nullopt;
+    std::string text;
+    char buf[4096];
+    size_t n;
+    while ((n = std::fread(buf, 1, sizeof(buf), f)) > 0) text.append(buf, n);
+    std::fclose(f);
+    auto info = InfoFromJson(nlohmann::json::parse(text));
+    if (info && info->id != id) return std::nullopt;
+    return info;
+  } catch (const nlohmann::json::exception&) {
+    return std::nullopt;
+  }
+}
+
+void WriteMeta(const fs::path& dir, const ScanInfo& info) {
+  WriteFileAtomically(MetaPath(dir, info.id), info.ToJson().dump(2) + "\n");
+}
+
+// Metadata rebuilt from what the reader recovers. A finished archive takes its state from
+// the footer; anything else is "partial" with the recovery report as the reason.
+ScanInfo RecoverInfo(const fs::path& path, const std::string& id, bool renamed,
+                     const std::optional<ScanInfo>& old) {
+  ScanInfo info;
+  info.id = id;
+  info.created = old ? old->created : CreatedFromId(id);
+  info.header = old ? old->header : nlohmann::json::object();
+  info.state = ScanState::kPartial;
+  try {
+    ScanArchive archive = ReadScanFile(path);
+    if (archive.header.is_object()) info.header = archive.header;
+    info.frames = archive.report.frames;
+    info.peaks = archive.report.peaks;
+    info.bytes = archive.report.bytes_total;
+    info.reason = archive.report.message;
+    if (renamed && archive.report.complete && archive.footer) {
+      info.footer = *archive.footer;
+      const auto state = ParseState(info.footer.value("status", "complete"));
+      info.state = state && IsFinished(*state) ? *state : ScanState::kComplete;
+      info.reason = info.footer.value("reason", "");
+    }
+  } catch (const ScanFormatError& e) {
+    std::error_code ec;
+    const auto size = fs::file_size(path, ec);
+    info.bytes = ec ? 0 : size;
+    info.reason = e.what();
+  }
+  return info;
+}
+
+// Caller holds state.mu. Best effort: a failure is retried at the next Finish or Open.
+void ApplyRetention(const internal::StoreState& state) {
+  if (state.options.keep_finished == 0) return;
+  std::vector<std::string> finished;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(state.dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!EndsWith(name, kMetaSuffix)) continue;
+    const std::string id = name.substr(0, name.size() - kMetaSuffix.size());
+    if (!IsValidScanId(id) || state.active.count(id) > 0) continue;
+    const auto info = ReadMeta(state.dir, id);
+    if (info && IsFinished(info->state)) finished.push_back(id);
+  }
+  std::sort(finished.rbegin(), finished.rend());
+  for (size_t i = state.options.keep_finished; i < finished.size(); ++i) {
+    fs::remove(ArchivePath(state.dir, finished[i]), ec);
+    fs::remove(MetaPath(state.dir, finished[i]), ec);
+  }
+  if (finished.size() > state.options.keep_finished) {
+    try {
+      SyncDir(state.dir);
+    } catch (const StoreError&) {
+    }
+  }
+}
+
+}  // namespace
+
+bool IsValidScanId(std::string_view id) {
+  if (id.size() != kIdLength) return false;
+  for (size_t i = 0; i < id.size(); ++i) {
+    const char c = id[i];
+    if (i == 8) {
+      if (c != 'T') return false;
+    } else if (i == 15) {
+      if (c != 'Z') return false;
+    } else if (i == 16) {
+      if (c != '-') return false;
+    } else if (c < '0' || c > '9') {
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string_view ScanStateName(ScanState state) {
+  switch (state) {
+    case ScanState::kWriting:
+      return "writing";
+    case ScanState::kComplete:
+      return "complete";
+    case ScanState::kAborted:
+      return "aborted";
+    case ScanState::kFault:
+      return "fault";
+    case ScanState::kPartial:
+      return "partial";
+  }
+  return "unknown";
+}
+
+nlohmann::json ScanInfo::ToJson() const {
+  return {{"id", id},           {"state", std::string(ScanStateName(state))},
+          {"reason", reason},   {"frames", frames},
+          {"peaks", peaks},     {"bytes", bytes},
+          {"created", created}, {"header", header},
+          {"footer", footer}};
+}
+
+// ---------------------------------------------------------------------------------------
+// ScanHandle
+
+ScanHandle::ScanHandle(std::shared_ptr<internal::StoreState> state, ScanInfo info,
+                       std::unique_ptr<ScanFileWriter> writer)
+    : state_(std::move(state)), id_(info.id), info_(std::move(info)), writer_(std::move(writer)) {
+  bytes_ = writer_->bytes_written();
+}
+
+ScanHandle::~ScanHandle() {
+  if (closed_) return;
+  writer_.reset();  // closes the file; what is on disk is what a crash would leave
+  try {
+    const fs::path partial = PartialPath(state_->dir, id_);
+    ScanInfo info = RecoverInfo(partial, id_, /*renamed=*/false, info_);
+    info.reason = "not finished: " + info.reason;
+    WriteMeta(state_->dir, info);
+  } catch (...) {
+    // Disk full or worse: the next Open marks it from the archive.
+  }
+  Close(false);
+}
+
+void ScanHandle::Close(bool /*finished*/) noexcept {
+  std::lock_guard<std::mutex> lock(state_->mu);
+  state_->active.erase(id_);
+  closed_ = true;
+}
+
+void ScanHandle::AppendFrame(const FrameRecord& frame) {
+  if (closed_) throw std::logic_error("scan " + id_ + " is already finished");
+  if (failed_) {
+    throw StoreError(StoreError::Kind::kIo, "scan " + id_ + ": not writable after an error");
+  }
+  try {
+    writer_->AppendFrame(frame);
+  } catch (const ScanFormatError& e) {
+    failed_ = true;
+    throw StoreError(StoreError::Kind::kIo, e.what());
+  } catch (const std::invalid_argument& e) {
+    throw StoreError(StoreError::Kind::kInvalidArgument, e.what());
+  }
+  frames_ += 1;
+  peaks_ += frame.peaks.size();
+  bytes_ = writer_->bytes_written();
+}
+
+void ScanHandle::Finish(const nlohmann::json& footer) {
+  if (closed_) throw std::logic_error("scan " + id_ + " is already finished");
+  if (!footer.is_object()) {
+    throw StoreError(StoreError::Kind::kInvalidArgument, "scan footer must be a JSON object");
+  }
+  const auto status_json = footer.value("status", nlohmann::json("complete"));
+  const auto state =
+      status_json.is_string() ? ParseState(status_json.get<std::string>()) : std::nullopt;
+  if (!state || !IsFinished(*state)) {
+    throw StoreError(StoreError::Kind::kInvalidArgument,
+                     "scan footer status must be \"complete\", \"aborted\" or \"fault\"");
+  }
+  if (failed_) {
+    throw StoreError(StoreError::Kind::kIo, "scan " + id_ + ": not writable after an error");
+  }
+  const fs::path partial = PartialPath(state_->dir, id_);
+  const fs::path archive = ArchivePath(state_->dir, id_);
+  try {
+    writer_->Finish(footer);  // fsyncs the file and the directory
+  } catch (const ScanFormatError& e) {
+    failed_ = true;
+    throw StoreError(StoreError::Kind::kIo, e.what());
+  }
+  bytes_ = writer_->bytes_written();
+  writer_.reset();
+  if (::rename(partial.c_str(), archive.c_str()) != 0) {
+    failed_ = true;
+    ThrowIo(partial, "rename to " + archive.filename().string());
+  }
+  ScanInfo info = info_;
+  info.state = *state;
+  info.reason = footer.value("reason", nlohmann::json("")).is_string() ? footer.value("reason", "")
+                                                                       : footer["reason"].dump();
+  info.frames = frames_;
+  info.peaks = peaks_;
+  info.bytes = bytes_;
+  info.footer = footer;
+  // The archive is final from here on: should the metadata fail, Open rebuilds it.
+  closed_ = true;
+  try {
+    WriteMeta(state_->dir, info);  // fsyncs the directory: covers the rename too
+  } catch (...) {
+    Close(true);
+    throw;
+  }
+  Close(true);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  ApplyRetention(*state_);
+}
+
+// ---------------------------------------------------------------------------------------
+// ScanStore
+
+ScanStore::ScanStore(std::shared_ptr<internal::StoreState> state) : state_(std::move(state)) {}
+ScanStore::~ScanStore() = default;
+
+const fs::path& ScanStore::dir() const { return state_->dir; }
+
+std::unique_ptr<ScanStore> ScanStore::Open(const fs::path& dir, ScanStoreOptions options) {
+  auto state = std::make_shared<internal::StoreState>();
+  state->dir = dir;
+  state->options = std::move(options);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) ThrowIo(dir, "cannot create data directory", ec.value());
+
+  std::set<std::string> ids;
+  bool removed = false;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (EndsWith(name, kTmpSuffix)) {
+      fs::remove(entry.path(), ec);
+      removed = true;
+      continue;
+    }
+    for (std::string_view suffix : {kPartialSuffix, kArchiveSuffix, kMetaSuffix}) {
+      if (EndsWith(name, suffix)) {
+        const std::string id = name.substr(0, name.size() - suffix.size());
+        if (IsValidScanId(id)) ids.insert(id);
+        break;
+      }
+    }
+  }
+  if (ec) ThrowIo(dir, "cannot list data directory", ec.value());
+
+  for (const std::string& id : ids) {
+    state->last_id = std::max(state->last_id, id);
+    const bool has_archive = fs::is_regular_file(ArchivePath(dir, id), ec);
+    const bool has_partial = fs::is_regular_file(PartialPath(dir, id), ec);
+    const std::optional<ScanInfo> meta = ReadMeta(dir, id);
+    if (!has_archive && !has_partial) {
+      // Metadata of a scan whose deletion was cut short.
+      fs::remove(MetaPath(dir, id), ec);
+      removed = true;
+      continue;
+    }
+    if (has_archive) {
+      if (meta && IsFinished(meta->state)) continue;
+      WriteMeta(dir, RecoverInfo(ArchivePath(dir, id), id, /*renamed=*/true, meta));
+    } else {
+      const auto size = fs::file_size(PartialPath(dir, id), ec);
+      if (meta && meta->state == ScanState::kPartial && !ec && meta->bytes == size) continue;
+      WriteMeta(dir, RecoverInfo(PartialPath(dir, id), id, /*renamed=*/false, meta));
+    }
+  }
+  if (removed) SyncDir(dir);
+  {
+    std::lock_guard<std::mutex> lock(state->mu);
+    ApplyRetention(*state);
+  }
+  return std::unique_ptr<ScanStore>(new ScanStore(std::move(state)));
+}
+
+std::unique_ptr<ScanHandle> ScanStore::BeginScan(const nlohmann::json& header) {
+  if (!header.is_object()) {
+    throw StoreError(StoreError::Kind::kInvalidArgument, "scan header must be a JSON object");
+  }
+  std::lock_guard<std::mutex> lock(state_->mu);
+  const std::string id = NextId(*state_);
+  nlohmann::json full_header = header;
+  full_header["scan_id"] = id;
+  const fs::path partial = PartialPath(state_->dir, id);
+  ScanFileWriterOptions writer_options;
+  writer_options.fsync_every_frames = state_->options.fsync_every_frames;
+  std::unique_ptr<ScanFileWriter> writer;
+  try {
+    writer = std::make_unique<ScanFileWriter>(partial, writer_options);
+  } catch (const ScanFormatError& e) {
+    throw StoreError(StoreError::Kind::kIo, e.what());
+  }
+  state_->last_id = id;  // taken even if the rest fails: ids are never reused
+  ScanInfo info;
+  info.id = id;
+  info.state = ScanState::kWriting;
+  info.created = CreatedFromId(id);
+  info.header = full_header;
+  try {
+    writer->Begin(full_header);
+    info.bytes = writer->bytes_written();
+    WriteMeta(state_->dir, info);
+  } catch (const std::exception& e) {
+    // Nothing of the scan was recorded yet: remove what there is.
+    writer.reset();
+    std::error_code ec;
+    fs::remove(partial, ec);
+    fs::remove(MetaPath(state_->dir, id), ec);
+    if (dynamic_cast<const StoreError*>(&e) != nullptr) throw;
+    throw StoreError(StoreError::Kind::kIo, e.what());
+  }
+  std::unique_ptr<ScanHandle> handle(new ScanHandle(state_, std::move(info), std::move(writer)));
+  state_->active[id] = handle.get();
+  return handle;
+}
+
+namespace {
+
+void CheckId(const std::string& id) {
+  if (!IsValidScanId(id)) {
+    throw StoreError(StoreError::Kind::kInvalidId, "not a scan id: \"" + id + "\"");
+  }
+}
+
+}  // namespace
+
+std::vector<ScanInfo> ScanStore::List() const {
+  std::lock_guard<std::mutex> lock(state_->mu);
+  std::set<std::string> ids;
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(state_->dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (!EndsWith(name, kMetaSuffix)) continue;
+    const std::string id = name.substr(0, name.size() - kMetaSuffix.size());
+    if (IsValidScanId(id)) ids.insert(id);
+  }
+  if (ec) ThrowIo(state_->dir, "cannot list data directory", ec.value());
+  for (const auto& [id, handle] : state_->active) ids.insert(id);
+  std::vector<ScanInfo> result;
+  for (auto it = ids.rbegin(); it != ids.rend(); ++it) {
+    const auto active = state_->active.find(*it);
+    if (active != state_->active.end()) {
+      const ScanHandle& h = *active->second;
+      ScanInfo info = h.info_;
+      info.frames = h.frames_;
+      info.peaks = h.peaks_;
+      info.bytes = h.bytes_;
+      result.push_back(std::move(info));
+    } else if (auto info = ReadMeta(state_->dir, *it)) {
+      result.push_back(std::move(*info));
+    }
+  }
+  return result;
+}
+
+ScanInfo ScanStore::Get(const std::string& id) const {
+  CheckId(id);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  const auto active = state_->active.find(id);
+  if (active != state_->active.end()) {
+    const ScanHandle& h = *active->second;
+    ScanInfo info = h.info_;
+    info.frames = h.frames_;
+    info.peaks = h.peaks_;
+    info.bytes = h.bytes_;
+    return info;
+  }
+  auto info = ReadMeta(state_->dir, id);
+  if (!info) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+  return *info;
+}
+
+fs::path ScanStore::Path(const std::string& id) const {
+  CheckId(id);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  std::error_code ec;
+  const fs::path partial = PartialPath(state_->dir, id);
+  const fs::path archive = ArchivePath(state_->dir, id);
+  const bool active = state_->active.count(id) > 0;
+  if (active && fs::exists(partial, ec)) return partial;
+  if (fs::exists(archive, ec)) return archive;
+  if (fs::exists(partial, ec)) return partial;
+  throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+}
+
+void ScanStore::Delete(const std::string& id) {
+  CheckId(id);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  if (state_->active.count(id) > 0) {
+    throw StoreError(StoreError::Kind::kBusy, "scan " + id + " is being written");
+  }
+  bool found = false;
+  for (const fs::path& p :
+       {ArchivePath(state_->dir, id), PartialPath(state_->dir, id), MetaPath(state_->dir, id)}) {
+    std::error_code ec;
+    const bool removed = fs::remove(p, ec);
+    if (ec) ThrowIo(p, "cannot delete", ec.value());
+    found = found || removed;
+  }
+  if (!found) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+  SyncDir(state_->dir);
+}
+
+}  // namespace mirrorscan::store

@@ -1,0 +1,154 @@
+#pragma once
+
+// The scan store: every scan as an .mscan archive (docs/scan-format.md) under the device's
+// --data-dir, with a small JSON metadata file beside it.
+//
+//   <id>.mscan.partial   the archive while it is written (and after a crash: kept)
+//   <id>.mscan           the archive after Finish
+//   <id>.json            metadata, always replaced atomically (temp, fsync, rename, fsync dir)
+//   <id>.json.tmp        a metadata write in progress; removed by Open
+//
+// States in the metadata: "writing" (a handle is open), "complete", "aborted", "fault"
+// (finished archives: the footer's status), "partial" (never finished: a crash, an
+// abandoned handle or a write error; the reason is the reader's recovery report).
+// Partial archives are never deleted by the store itself, only by Delete.
+//
+// Thread-safe: one ScanStore may serve the sequencer and the HTTP threads at once. A
+// ScanHandle is used by one thread at a time.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/scan_format/scan_format.h"
+
+namespace mirrorscan::store {
+
+// Every store failure. kIo (disk full, EIO, permissions) during a scan is what the
+// sequencer turns into a fault; the other kinds map to HTTP 400/404/409.
+class StoreError : public std::runtime_error {
+ public:
+  enum class Kind {
+    kIo,               // a file operation failed; the message names the file and errno
+    kInvalidId,        // not a scan id (IsValidScanId); nothing was touched
+    kNotFound,         // no scan with that id
+    kBusy,             // the scan is being written
+    kInvalidArgument,  // e.g. a header that is not a JSON object, an unknown footer status
+  };
+  StoreError(Kind kind, const std::string& message) : std::runtime_error(message), kind_(kind) {}
+  Kind kind() const { return kind_; }
+
+ private:
+  Kind kind_;
+};
+
+// "YYYYMMDDTHHMMSSZ-NNNN" (UTC start time, then a counter): exactly 21 ASCII characters,
+// digits where digits go. Ids sort in the order the scans were begun.
+bool IsValidScanId(std::string_view id);
+
+enum class ScanState { kWriting, kComplete, kAborted, kFault, kPartial };
+std::string_view ScanStateName(ScanState state);  // "writing", "complete", ...
+
+struct ScanInfo {
+  std::string id;
+  ScanState state = ScanState::kWriting;
+  std::string reason;  // footer reason (aborted/fault) or recovery report (partial)
+  uint64_t frames = 0;
+  uint64_t peaks = 0;
+  uint64_t bytes = 0;     // archive size
+  std::string created;    // UTC, "2026-11-24T02:55:01Z"
+  nlohmann::json header;  // the archive header (object), as given to BeginScan
+  nlohmann::json footer;  // null unless finished
+
+  nlohmann::json ToJson() const;  // the metadata file's content
+};
+
+struct ScanStoreOptions {
+  uint32_t fsync_every_frames = 30;  // 0: only on Finish
+  // Keep at most this many finished scans (complete, aborted or fault), deleting the
+  // oldest after each Finish and on Open. 0: keep all. Partial scans and the scan being
+  // written are never counted or deleted.
+  size_t keep_finished = 0;
+  // Wall clock for ids and "created"; tests inject one. Null: system_clock::now.
+  std::function<std::chrono::system_clock::time_point()> now;
+};
+
+namespace internal {
+struct StoreState;
+}
+
+// One scan being written. Destroying it without Finish (or after an error) keeps the
+// .partial archive and marks it "partial" with the recovery report, best effort; a real
+// crash leaves the same for the next Open to mark.
+class ScanHandle {
+ public:
+  ~ScanHandle();
+  ScanHandle(const ScanHandle&) = delete;
+  ScanHandle& operator=(const ScanHandle&) = delete;
+
+  const std::string& id() const { return id_; }
+  // StoreError kIo on a write error; the handle is then failed and only destruction is left.
+  void AppendFrame(const FrameRecord& frame);
+  // footer["status"] is "complete" (default when absent), "aborted" or "fault"; "reason"
+  // is copied to the metadata. fsyncs, renames .partial to .mscan, fsyncs the directory,
+  // writes the metadata, then applies the retention limit.
+  void Finish(const nlohmann::json& footer);
+
+  uint64_t frames() const { return frames_; }
+  uint64_t peaks() const { return peaks_; }
+  uint64_t bytes() const { return bytes_; }
+
+ private:
+  friend class ScanStore;
+  ScanHandle(std::shared_ptr<internal::StoreState> state, ScanInfo info,
+             std::unique_ptr<ScanFileWriter> writer);
+  void Close(bool finished) noexcept;
+
+  std::shared_ptr<internal::StoreState> state_;
+  std::string id_;
+  ScanInfo info_;
+  std::unique_ptr<ScanFileWriter> writer_;
+  bool failed_ = false;
+  bool closed_ = false;
+  std::atomic<uint64_t> frames_{0};
+  std::atomic<uint64_t> peaks_{0};
+  std::atomic<uint64_t> bytes_{0};
+};
+
+class ScanStore {
+ public:
+  // Creates dir if needed; removes leftover temp files and metadata whose archive is gone;
+  // marks every .partial archive (and any archive without usable metadata) from what
+  // ReadScanFile recovers; applies the retention limit. Throws StoreError kIo.
+  static std::unique_ptr<ScanStore> Open(const std::filesystem::path& dir,
+                                         ScanStoreOptions options = {});
+  ~ScanStore();
+
+  // A new scan: creates <id>.mscan.partial with the header (plus "scan_id": id) and the
+  // metadata in state "writing". kInvalidArgument when header is not an object, kIo.
+  std::unique_ptr<ScanHandle> BeginScan(const nlohmann::json& header);
+
+  std::vector<ScanInfo> List() const;         // newest first; live counters while writing
+  ScanInfo Get(const std::string& id) const;  // kInvalidId, kNotFound
+  // The archive to download: .mscan, or .mscan.partial while writing or after a crash.
+  std::filesystem::path Path(const std::string& id) const;
+  // Removes archive and metadata. kBusy while the scan is being written.
+  void Delete(const std::string& id);
+
+  const std::filesystem::path& dir() const;
+
+ private:
+  explicit ScanStore(std::shared_ptr<internal::StoreState> state);
+  std::shared_ptr<internal::StoreState> state_;
+};
+
+}  // namespace mirrorscan::store
