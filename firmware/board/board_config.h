@@ -1,0 +1,75 @@
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/config/json_reader.h"
+#include "common/peaks/peaks.h"
+#include "firmware/hal/camera.h"
+#include "firmware/hal/gpio_config.h"
+#include "firmware/hal/modbus/modbus_drive_config.h"
+
+namespace mirrorscan::board {
+
+// Which Camera implementation a board.json camera asks for.
+enum class CameraBackend { kLibcamera, kVirtual, kReplay };
+
+// One entry of board.json's "cameras" list (docs/boards.md).
+struct BoardCamera {
+  std::string name;  // unique on the board; names the camera in scans and calibration
+  CameraBackend backend = CameraBackend::kLibcamera;
+  std::string id;              // libcamera: the camera id (string)
+  int scene_camera = 0;        // virtual: index into the virtual cabinet's cameras
+  std::filesystem::path path;  // replay: directory of *.pgm frames
+  hal::CameraConfig config;    // validated (CameraConfig::Validate)
+};
+
+// "drive": a Modbus drive, or the firmware's in-process simulated drive.
+struct BoardDrive {
+  enum class Backend { kModbus, kVirtual };
+  Backend backend = Backend::kModbus;
+  hal::ModbusDriveConfig modbus;  // kModbus only
+};
+
+// "scan": the sweep and the safety supervisor's limits.
+struct ScanConfig {
+  double max_laser_on_s = 30.0;  // the supervisor switches the lasers off after this
+  double sweep_start_mm = 0.0;
+  double sweep_end_mm = 1800.0;
+  double speed_mm_s = 100.0;
+  double home_timeout_s = 30.0;
+};
+
+// "store": the on-device scan store.
+struct StoreConfig {
+  int retention_scans = 50;  // oldest completed scans beyond this are deleted
+};
+
+// "service": the device API.
+struct ServiceConfig {
+  std::string listen;  // "host:port"
+  std::filesystem::path token_file;
+};
+
+// A whole board.json. Every section is required; unknown keys anywhere are errors, and
+// every error is a ConfigError naming the file and key ("board.json: cameras[1].fps: ...").
+struct BoardConfig {
+  std::string board;
+  std::string description;
+  std::vector<BoardCamera> cameras;
+  hal::GpioConfig gpio;
+  BoardDrive drive;
+  PeakParams peaks;
+  ScanConfig scan;
+  StoreConfig store;
+  ServiceConfig service;
+
+  static BoardConfig Load(const std::filesystem::path& board_json);
+  // `file` names the source in errors.
+  static BoardConfig Parse(const nlohmann::json& json, const std::string& file);
+};
+
+}  // namespace mirrorscan::board
