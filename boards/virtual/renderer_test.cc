@@ -107,6 +107,34 @@ TEST(RendererTest, TruthPointsLieOnLaserPlaneAndSurfaceAndProjectToTheirPixel) {
   EXPECT_GT(on_box[View::kRight], 50);
 }
 
+TEST(RendererTest, TruthFollowsTiltedLaserPlanes) {
+  Scene scene = Scene::Load(ScenePath("cylinder"));
+  scene.lasers.normal =
+      (Eigen::AngleAxisd(1.5 * M_PI / 180, Eigen::Vector3d::UnitX()) *
+       Eigen::AngleAxisd(-0.8 * M_PI / 180, Eigen::Vector3d::UnitY()) * Eigen::Vector3d::UnitZ());
+  const Renderer renderer(scene);
+  const double t = 5.0;
+  const auto peaks = renderer.Truth(1, t);
+  int on_cylinder = 0;
+  for (const TruthPeak& p : peaks) {
+    ASSERT_LT(std::abs(scene.lasers.PlaneAt(p.laser, t).SignedDistance(p.point_in_world)), 1e-6);
+    const auto pixel =
+        scene.cameras[1].camera.ProjectWorld(Reflect(scene, p.view, p.point_in_world));
+    ASSERT_TRUE(pixel);
+    ASSERT_LT((*pixel - Eigen::Vector2d(p.u, p.v)).norm(), 0.01);
+    if (p.material == Material::kSubject) ++on_cylinder;
+  }
+  // A tilted sheet cuts the cylinder in a tilted ellipse: its height varies around it.
+  double z_min = 1e9, z_max = -1e9;
+  for (const TruthPeak& p : peaks) {
+    if (p.material != Material::kSubject || p.laser != 1) continue;
+    z_min = std::min(z_min, p.point_in_world.z());
+    z_max = std::max(z_max, p.point_in_world.z());
+  }
+  EXPECT_GT(on_cylinder, 300);
+  EXPECT_GT(z_max - z_min, 3.0);
+}
+
 struct DetectedMarker {
   int id;
   std::array<cv::Point2f, 4> corners;
