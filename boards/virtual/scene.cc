@@ -139,7 +139,6 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   root.AllowOnly({"cameras", "mirrors", "panels", "floor", "lasers", "sensor", "subject", "target",
                   "frames", "seed"});
   Scene scene;
-  scene.source = json;
 
   // Cameras.
   nlohmann::json cameras_json = DefaultCameras();

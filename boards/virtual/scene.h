@@ -108,7 +108,6 @@ struct Scene {
   std::optional<CalibrationTarget> target;
   int frames = 300;
   uint64_t seed = 1;
-  nlohmann::json source;  // the scene as given, defaults filled in by the caller's file
 
   // Scene file with every key optional (defaults documented in docs/virtual-cabinet.md);
   // errors are ConfigError naming file and key.

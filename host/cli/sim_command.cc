@@ -50,9 +50,9 @@ struct SimOptions {
   bool pgm = false;  // frames as binary PGM (what the replay camera plays) instead of PNG
 };
 
-cv::Mat ToMat(const GrayImage& image) {
-  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data()))
-      .clone();
+// A view of the rendered pixels (no copy); valid while `image` lives.
+cv::Mat MatView(const GrayImage& image) {
+  return cv::Mat(image.height, image.width, CV_8U, const_cast<uint8_t*>(image.pixels.data()));
 }
 
 void WritePng(const fs::path& path, const cv::Mat& image) {
@@ -116,8 +116,9 @@ void Render(const SimOptions& o) {
   for (int camera : SelectCameras(scene, o.camera)) {
     const std::string stem = scene.cameras[camera].name + "_frame" + std::to_string(frame);
     const fs::path png = fs::path(o.out) / (stem + ".png");
-    WritePng(png,
-             ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers)));
+    const GrayImage image =
+        renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers);
+    WritePng(png, MatView(image));
     nlohmann::json entry = {
         {"camera", scene.cameras[camera].name}, {"image", png.string()}, {"time_s", t}};
     if (!o.no_lasers) {
@@ -174,8 +175,9 @@ void Scan(const SimOptions& o) {
         const size_t which = job % cameras.size();
         const int camera = cameras[which];
         const double t = scene.FrameTime(frame);
-        const cv::Mat image =
-            ToMat(renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers));
+        const GrayImage rendered =
+            renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame), !o.no_lasers);
+        const cv::Mat image = MatView(rendered);
         if (!o.no_images) {
           std::ostringstream name;
           name << "frame_" << std::setw(6) << std::setfill('0') << frame
@@ -195,7 +197,7 @@ void Scan(const SimOptions& o) {
               peak_params, &extractor, &record.peaks);
         }
         if (!o.contact_sheet.empty() && frame % sheet_step == 0 && frame / sheet_step < 12) {
-          sheet_frames[which * 12 + frame / sheet_step] = image;
+          sheet_frames[which * 12 + frame / sheet_step] = image.clone();
         }
         if (o.truth) {
           const auto peaks = renderer.Truth(camera, t);
