@@ -41,6 +41,7 @@ void SafetySupervisor::Arm(const std::vector<std::string>& cameras, bool watch_d
 void SafetySupervisor::Disarm() {
   std::lock_guard lock(mutex_);
   armed_ = false;
+  tripped_ = false;
 }
 
 void SafetySupervisor::CameraFrame(int camera, int64_t now_ns) {
@@ -98,6 +99,7 @@ void SafetySupervisor::DoTrip(bool fault, const std::string& reason, int64_t det
   trip.fault = fault;
   trip.reason = reason;
   trip.detected_ns = detected_ns;
+  tripped_ = true;
   const bool off = lasers_.SafeOff();
   trip.safe_ns = hal::SteadyNowNs();
   armed_ = false;

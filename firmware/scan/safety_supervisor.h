@@ -59,6 +59,10 @@ class SafetySupervisor {
   // Stops watching (the sequencer switches the lasers off itself on a normal end).
   void Disarm();
   bool armed() const { return armed_.load(); }
+  // A trip is being carried out or was reported and not yet followed by Disarm(): the
+  // sequencer then waits for the trip's report instead of judging the half-stopped
+  // hardware itself.
+  bool tripped() const { return tripped_.load(); }
   // A frame from `camera` arrived; any thread, lock-free.
   void CameraFrame(int camera, int64_t now_ns);
   // Makes the outputs safe from the supervisor's thread within one wake-up; any thread,
@@ -79,6 +83,7 @@ class SafetySupervisor {
   const TripCallback on_trip_;
 
   std::atomic<bool> armed_{false};
+  std::atomic<bool> tripped_{false};
   std::atomic<int64_t> armed_ns_{0};
   bool watch_drive_ = false;
   // Fixed slots, so CameraFrame never races with Arm over the container.

@@ -316,6 +316,7 @@ void Sequencer::BeginScan(const std::string& origin,
   }
   peaks_ = 0;
   store_failed_ = false;
+  supervisor_->Disarm();  // forget a trip that raced with the end of the last scan
   try {
     handle_ = store_.BeginScan(Header(origin));
   } catch (const std::exception& e) {
@@ -366,6 +367,7 @@ void Sequencer::Step() {
       state != SequencerState::kSweeping) {
     return;
   }
+  if (supervisor_->tripped()) return;  // its report is on the way
   const int64_t now_ns = hal::SteadyNowNs();
   const int64_t stale_ns = options_.supervisor.drive_stale.count();
   if (now_ns - std::max(monitor_->last_good_ns(), command_ns_) > stale_ns) {
