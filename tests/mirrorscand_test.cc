@@ -5,11 +5,15 @@
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -37,10 +41,12 @@ const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
 class Daemon {
  public:
   // Starts mirrorscand with `args`, output to `log`; a file size limit when fsize_limit > 0.
-  Daemon(const std::vector<std::string>& args, const fs::path& log, rlim_t fsize_limit = 0)
+  Daemon(const std::vector<std::string>& args, const fs::path& log, rlim_t fsize_limit = 0,
+         const std::vector<std::pair<std::string, std::string>>& env = {})
       : log_(log) {
     pid_ = fork();
     if (pid_ == 0) {
+      for (const auto& [name, value] : env) setenv(name.c_str(), value.c_str(), 1);
       const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       dup2(fd, 1);
       dup2(fd, 2);
@@ -279,6 +285,37 @@ TEST_F(MirrorscandTest, DiskFullIsACleanFault) {
   EXPECT_EQ(after[1].frames, before[0].frames);
   EXPECT_EQ(after[0].state, store::ScanState::kPartial);
   EXPECT_GT(ReadScanFile(data_ / (after[0].id + ".mscan.partial")).frames.size(), 0u);
+}
+
+TEST_F(MirrorscandTest, NotifiesSystemdReadyWatchdogAndStopping) {
+  const fs::path socket_path = dir_ / "notify";
+  const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un address{};
+  address.sun_family = AF_UNIX;
+  std::strncpy(address.sun_path, socket_path.c_str(), sizeof(address.sun_path) - 1);
+  ASSERT_EQ(bind(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address), 0);
+  timeval timeout{0, 100000};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  Daemon daemon(Args(WriteBoard(true)), dir_ / "log", 0,
+                {{"NOTIFY_SOCKET", socket_path.string()}, {"WATCHDOG_USEC", "200000"}});
+  std::vector<std::string> messages;
+  const auto end = std::chrono::steady_clock::now() + seconds(30);
+  auto count = [&](const std::string& m) {
+    return std::count(messages.begin(), messages.end(), m);
+  };
+  while (std::chrono::steady_clock::now() < end && count("STOPPING=1") == 0) {
+    char buffer[256];
+    const ssize_t n = recv(fd, buffer, sizeof buffer, 0);
+    if (n > 0) messages.emplace_back(buffer, static_cast<size_t>(n));
+    if (count("WATCHDOG=1") == 3) daemon.Signal(SIGTERM);
+  }
+  close(fd);
+  EXPECT_EQ(daemon.Wait(), 0) << daemon.Log();
+  ASSERT_FALSE(messages.empty());
+  EXPECT_EQ(messages.front(), "READY=1");
+  EXPECT_GE(count("WATCHDOG=1"), 3);
+  EXPECT_EQ(count("STOPPING=1"), 1);
 }
 
 TEST_F(MirrorscandTest, BadInputGetsOneLineAndItsExitCode) {

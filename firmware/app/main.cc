@@ -130,9 +130,9 @@ class SystemdNotifier {
       spdlog::warn("sd_notify {}: {}", message, std::strerror(errno));
     }
   }
-  // Pings the watchdog at half its interval.
-  void Tick() {
-    if (fd_ < 0 || watchdog_interval_.count() <= 0) return;
+  // Pings the watchdog at half its interval while `alive`.
+  void Tick(bool alive) {
+    if (fd_ < 0 || watchdog_interval_.count() <= 0 || !alive) return;
     const auto now = std::chrono::steady_clock::now();
     if (now - last_ping_ >= watchdog_interval_) {
       Send("WATCHDOG=1");
@@ -261,7 +261,9 @@ int Run(const Args& args, const sigset_t& signals) {
 
   int exit_code = kOk;
   while (true) {
-    notifier.Tick();
+    // Only while the control loop and the supervisor are running (a blocked drive call
+    // may hold the loop for up to ~1 s; the watchdog allows WatchdogSec).
+    notifier.Tick(sequencer->Alive(2'000'000'000));
     const timespec timeout{0, 50 * 1000 * 1000};
     const int signal = sigtimedwait(&signals, nullptr, &timeout);
     if (signal == SIGTERM || signal == SIGINT) {

@@ -119,6 +119,7 @@ void SafetySupervisor::Run() {
   while (!stop_) {
     wake_.wait_for(lock, options_.period, [&] { return stop_ || trip_requested_; });
     if (stop_) break;
+    heartbeat_ns_ = hal::SteadyNowNs();
     if (trip_requested_) {
       const bool fault = requested_fault_;
       const std::string reason = requested_reason_;

@@ -70,6 +70,8 @@ class SafetySupervisor {
   void RequestTrip(bool fault, const std::string& reason) noexcept;
 
   const SupervisorOptions& options() const { return options_; }
+  // Steady time of the thread's last pass (for the systemd watchdog).
+  int64_t heartbeat_ns() const { return heartbeat_ns_.load(); }
 
  private:
   void Run();
@@ -84,6 +86,7 @@ class SafetySupervisor {
 
   std::atomic<bool> armed_{false};
   std::atomic<bool> tripped_{false};
+  std::atomic<int64_t> heartbeat_ns_{0};
   std::atomic<int64_t> armed_ns_{0};
   bool watch_drive_ = false;
   // Fixed slots, so CameraFrame never races with Arm over the container.

@@ -149,6 +149,12 @@ ScanStatus Sequencer::Status() const {
   return status_;
 }
 
+bool Sequencer::Alive(int64_t max_age_ns) const {
+  const int64_t now_ns = hal::SteadyNowNs();
+  return now_ns - loop_heartbeat_ns_.load() <= max_age_ns &&
+         now_ns - supervisor_->heartbeat_ns() <= max_age_ns;
+}
+
 std::optional<Trip> Sequencer::last_trip() const {
   std::lock_guard lock(status_mutex_);
   return last_trip_;
@@ -215,6 +221,7 @@ void Sequencer::Loop() {
       }
     }
     if (stopping) break;
+    loop_heartbeat_ns_ = hal::SteadyNowNs();
     try {
       Step();
     } catch (const std::exception& e) {

@@ -90,6 +90,9 @@ class Sequencer final : public ScanControl {
 
   // The supervisor, for signal handlers and tests (RequestTrip).
   SafetySupervisor& supervisor() { return *supervisor_; }
+  // True when the control loop and the supervisor have both run within `max_age_ns`:
+  // what the daemon's systemd watchdog ping vouches for.
+  bool Alive(int64_t max_age_ns) const;
   // The last trip (detected and safe times), for tests and logs.
   std::optional<Trip> last_trip() const;
 
@@ -178,6 +181,7 @@ class Sequencer final : public ScanControl {
   std::atomic<bool> store_failed_{false};
   std::atomic<uint64_t> peaks_{0};
 
+  std::atomic<int64_t> loop_heartbeat_ns_{0};
   std::thread loop_;
 };
 
