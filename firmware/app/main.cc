@@ -204,6 +204,9 @@ int Run(const Args& args, const sigset_t& signals) {
     return kHardware;
   }
   g_lasers = devices.gpio.lasers.get();
+  struct ForgetLasers {  // before the devices go, whichever way Run returns
+    ~ForgetLasers() { g_lasers = nullptr; }
+  } forget_lasers;
 
   scan::SequencerDevices sequencer_devices;
   for (size_t i = 0; i < config.cameras.size(); ++i) {
@@ -317,7 +320,7 @@ int main(int argc, char** argv) {
   try {
     return Run(*args, signals);
   } catch (const std::exception& e) {
-    if (g_lasers != nullptr) g_lasers->SafeOff();
+    // Run's devices are gone (their destructors switched the lasers off).
     spdlog::critical("internal error: {}", e.what());
     return kInternal;
   }
