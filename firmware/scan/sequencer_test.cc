@@ -376,6 +376,23 @@ TEST_F(SequencerTest, DriveNotAnsweringTrips) {
   ExpectStored(id, store::ScanState::kFault, "fault");
 }
 
+TEST_F(SequencerTest, DriveSilentWhileHomingFaultsWithoutLaserLight) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(Eventually([&] { return sim_->State().model.homing; }));
+  sim_->SetResponding(false);
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_NE(sequencer_->Status().reason.find("drive not answering"), std::string::npos)
+      << sequencer_->Status().reason;
+  EXPECT_TRUE(LasersLow());
+  for (const auto* line : laser_lines_) {
+    const std::vector<bool> h = line->history();
+    EXPECT_EQ(std::count(h.begin(), h.end(), true), 0) << line->name();
+  }
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
+  EXPECT_TRUE(archive.frames.empty());
+}
+
 TEST_F(SequencerTest, CameraStallTrips) {
   MakeSequencer();
   const std::string id = sequencer_->StartScan("test");
