@@ -14,28 +14,19 @@ namespace mirrorscan::scan {
 
 // The sequencer's states (docs/firmware.md). kDone, kFault and kAborted are where a scan
 // ends; the next start leaves them.
-enum class SequencerState {
-  kIdle,
-  kHoming,
-  kArming,
-  kSweeping,
-  kFinishing,
-  kDone,
-  kFault,
-  kAborted
-};
+enum class SequencerState { kIdle, kHoming, kArming, kSweeping, kFinishing, kDone, kFault, kAborted };
 std::string_view SequencerStateName(SequencerState state);  // "idle", "homing", ...
 
 struct ScanStatus {
   SequencerState state = SequencerState::kIdle;
-  std::string scan_id;       // the running or last scan; empty before the first
-  double progress = 0.0;     // 0..1 along the sweep
-  double position_mm = 0.0;  // last slide position readback
-  uint64_t frames = 0;       // frames stored in this scan
+  std::string scan_id;        // the running or last scan; empty before the first
+  double progress = 0.0;      // 0..1 along the sweep
+  double position_mm = 0.0;   // last slide position readback
+  uint64_t frames = 0;        // frames stored in this scan
   uint64_t peaks = 0;
-  uint64_t dropped = 0;    // frames lost (camera drops + queue overflows)
-  std::string reason;      // why it faulted or aborted; empty otherwise
-  int64_t updated_ns = 0;  // steady clock
+  uint64_t dropped = 0;       // frames lost (camera drops + queue overflows)
+  std::string reason;         // why it faulted or aborted; empty otherwise
+  int64_t updated_ns = 0;     // steady clock
 };
 
 // A state change or a progress step (at most a few per second).
