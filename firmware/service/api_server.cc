@@ -83,33 +83,9 @@ int ControlErrorStatus(scan::ScanControlError::Kind kind) {
   return 500;
 }
 
-// scan::SequencerStateName lives in the sequencer's library (branch sequencer); until that
-// is merged the service names the states itself, with the same names.
-std::string_view StateName(scan::SequencerState state) {
-  switch (state) {
-    case scan::SequencerState::kIdle:
-      return "idle";
-    case scan::SequencerState::kHoming:
-      return "homing";
-    case scan::SequencerState::kArming:
-      return "arming";
-    case scan::SequencerState::kSweeping:
-      return "sweeping";
-    case scan::SequencerState::kFinishing:
-      return "finishing";
-    case scan::SequencerState::kDone:
-      return "done";
-    case scan::SequencerState::kFault:
-      return "fault";
-    case scan::SequencerState::kAborted:
-      return "aborted";
-  }
-  return "unknown";
-}
-
 protocol::ScanProgress ToProgress(const scan::ScanStatus& s) {
   protocol::ScanProgress p;
-  p.state = std::string(StateName(s.state));
+  p.state = std::string(scan::SequencerStateName(s.state));
   p.scan_id = s.scan_id;
   p.progress = s.progress;
   p.position_mm = s.position_mm;
