@@ -2,6 +2,7 @@
 // speed; the drive, GPIO, sequencer, store and device API are the real ones), driven by the
 // `mirrorscan device` CLI: a scan started and followed to its end, the archive fetched and
 // compared byte for byte with the store's file, and a live --follow of a second scan.
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -70,8 +71,9 @@ class DeviceEndToEndTest : public ::testing::Test {
     token_ = json::parse(ReadFile(kSource / "boards/virtual/board.json"))["service"]["token"];
     host_ = "127.0.0.1:" + std::to_string(FreePort());
     const fs::path board = WriteBoard();
-    std::vector<std::string> args = {MIRRORSCAND_PATH, "--board", board.string(), "--data-dir",
-                                     (dir_ / "data").string(), "--listen", host_};
+    std::vector<std::string> args = {
+        MIRRORSCAND_PATH,         "--board",  board.string(), "--data-dir",
+        (dir_ / "data").string(), "--listen", host_};
     std::vector<char*> argv;
     for (std::string& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -131,13 +133,14 @@ class DeviceEndToEndTest : public ::testing::Test {
 
   CliResult Run(const std::string& arguments) const {
     const fs::path err = dir_ / "stderr.txt";
-    const std::string command = "cd " + (dir_ / "host").string() + " && MIRRORSCAN_TOKEN=" + token_ +
-                                " " + MIRRORSCAN_BIN_DIR + "/mirrorscan " + arguments +
-                                " --host " + host_ + " 2>" + err.string();
+    const std::string command =
+        "cd " + (dir_ / "host").string() + " && MIRRORSCAN_TOKEN=" + token_ + " " +
+        MIRRORSCAN_BIN_DIR + "/mirrorscan " + arguments + " --host " + host_ + " 2>" + err.string();
     FILE* pipe = ::popen(command.c_str(), "r");
     std::string out;
     std::array<char, 4096> buffer;
-    while (size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) out.append(buffer.data(), n);
+    while (size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe))
+      out.append(buffer.data(), n);
     const int status = ::pclose(pipe);
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, ReadFile(err)};
   }

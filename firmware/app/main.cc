@@ -3,8 +3,8 @@
 //
 // Exit codes: 0 stopped by a signal, or --exit-after-scan and the scan completed;
 // 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line,
-// board.json or stored calibration.json; 3 a device or the device API failed to start; 4 the data directory cannot be used;
-// 5 an internal error (the lasers were switched off first).
+// board.json or stored calibration.json; 3 a device or the device API failed to start; 4 the data
+// directory cannot be used; 5 an internal error (the lasers were switched off first).
 
 #include <signal.h>
 #include <sys/socket.h>
