@@ -29,6 +29,8 @@ using nlohmann::json;
 using test_util::TcpCutProxy;
 
 constexpr char kToken[] = "virtual-dev-token-not-a-secret";
+const fs::path kCalibration =
+    fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json";
 
 std::string ReadFile(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
@@ -122,8 +124,7 @@ TEST_F(DeviceApiTest, ClientCallsAndErrors) {
   EXPECT_EQ(scans[0].id, id);
   EXPECT_EQ(device.Get(id).frames, 100u);
 
-  const std::string calibration =
-      R"({"schema":"mirrorscan.calibration","version":1,"cameras":[{}],"mirrors":[{},{}]})";
+  const std::string calibration = ReadFile(kCalibration);
   const std::string sha = device.PutCalibration(calibration);
   EXPECT_EQ(device.GetCalibration(), calibration);
   EXPECT_EQ(device.Status().calibration_sha256, sha);
@@ -282,14 +283,14 @@ TEST_F(DeviceApiTest, CliRefusesWithoutTokenAndExplains) {
 
 TEST_F(DeviceApiTest, CliCalibrationAndCapture) {
   const fs::path calibration = dir_ / "host" / "calibration.json";
-  std::ofstream(calibration)
-      << R"({"schema":"mirrorscan.calibration","version":1,"cameras":[{}],"mirrors":[{}]})";
+  json one_mirror = json::parse(ReadFile(kCalibration));
+  one_mirror["mirrors"].erase(1);
+  std::ofstream(calibration) << one_mirror.dump();
   const std::string auth = std::string("MIRRORSCAN_TOKEN=") + kToken;
   const CliResult refused = Run("device calibration put calibration.json --host " + Host(), auth);
   EXPECT_EQ(refused.exit_code, 1);
-  EXPECT_NE(refused.err.find("mirrors: expected exactly two"), std::string::npos) << refused.err;
-  std::ofstream(calibration)
-      << R"({"schema":"mirrorscan.calibration","version":1,"cameras":[{}],"mirrors":[{},{}]})";
+  EXPECT_NE(refused.err.find("mirrors: expected two mirrors"), std::string::npos) << refused.err;
+  fs::copy_file(kCalibration, calibration, fs::copy_options::overwrite_existing);
   const CliResult put =
       Run("device calibration put calibration.json --json --host " + Host(), auth);
   ASSERT_EQ(put.exit_code, 0) << put.err;

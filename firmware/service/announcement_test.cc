@@ -29,7 +29,8 @@ TEST(AnnouncementTest, AvahiServiceFilesMatchTheBoards) {
     std::smatch match;
     ASSERT_TRUE(std::regex_search(xml, match, std::regex("<port>([0-9]+)</port>")));
     EXPECT_EQ(match[1].str(), port);
-    EXPECT_NE(xml.find("<type>" + std::string(protocol::kServiceType) + "</type>"), std::string::npos);
+    EXPECT_NE(xml.find("<type>" + std::string(protocol::kServiceType) + "</type>"),
+              std::string::npos);
     EXPECT_NE(xml.find("<txt-record>board=" + board.board + "</txt-record>"), std::string::npos);
     ++checked;
   }

@@ -232,9 +232,14 @@ int ApiServer::Start(const std::string& listen) {
   } else if (!server_->bind_to_port(host, bound)) {
     throw std::runtime_error("cannot listen on " + listen + " (address in use or not local?)");
   }
-  thread_ = std::thread([this] { server_->listen_after_bind(); });
+  thread_ = std::thread([this] {
+    server_->listen_after_bind();
+    listen_ended_ = true;
+  });
   // httplib's stop() is a no-op until the accept loop runs; wait for it so Stop always works.
-  while (!server_->is_running()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  while (!server_->is_running() && !listen_ended_) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
   return bound;
 }
 

@@ -90,6 +90,7 @@ class ApiServer {
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};
+  std::atomic<bool> listen_ended_{false};
   std::atomic<int> streams_{0};
   std::mutex sha_mutex_;
   struct ShaEntry {

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "common/config/calibration.h"
 #include "common/config/json_reader.h"
 #include "common/protocol/sha256.h"
 
@@ -63,17 +64,9 @@ std::string HexSha256(const std::string& text) {
 }  // namespace
 
 void ValidateCalibration(const nlohmann::json& calibration, const std::string& source) {
-  // Interim structural check until common/config/calibration (branch calib) is merged;
-  // then this becomes Calibration::Parse(calibration, source).
-  if (!calibration.is_object()) throw ConfigError(source + ": expected a JSON object");
-  const JsonReader r(calibration, source);
-  if (r.String("schema") != "mirrorscan.calibration") {
-    r.Fail("schema", "expected \"mirrorscan.calibration\"");
-  }
-  r.Integer("version", std::nullopt, 1, 1);
-  const auto cameras = r.Objects("cameras");
-  if (cameras.empty() || cameras.size() > 2) r.Fail("cameras", "expected one or two cameras");
-  if (r.Objects("mirrors").size() != 2) r.Fail("mirrors", "expected exactly two mirrors");
+  // The schema's own parser (common/config/calibration.h), the same one the host uses:
+  // every check the device needs before trusting an upload lives there.
+  Calibration::Parse(calibration, source);
 }
 
 CalibrationStore::CalibrationStore(fs::path path) : path_(std::move(path)) {

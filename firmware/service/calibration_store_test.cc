@@ -13,19 +13,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string ValidCalibrationText() {
-  return nlohmann::json{{"schema", "mirrorscan.calibration"},
-                        {"version", 1},
-                        {"cameras", {{{"name", "upper"}}}},
-                        {"mirrors", {{{"name", "left"}}, {{"name", "right"}}}}}
-      .dump(2);
-}
-
 std::string ReadFile(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
+}
+
+// A valid calibration.json of the virtual cabinet (as `mirrorscan calibrate` writes it).
+std::string ValidCalibrationText() {
+  return ReadFile(fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json");
 }
 
 class CalibrationStoreTest : public ::testing::Test {

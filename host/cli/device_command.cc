@@ -210,9 +210,14 @@ void Scan(const DeviceOptions& o) {
 void Fetch(const DeviceOptions& o) {
   client::DeviceClient device = Connect(o);
   ProgressBar bar("fetch " + o.id);
-  const client::FetchResult r = o.follow
-                                    ? device.Follow(o.id, OutPath(o, o.id), DownloadProgress(bar))
-                                    : device.Fetch(o.id, OutPath(o, o.id), DownloadProgress(bar));
+  client::FetchResult r;
+  try {
+    r = o.follow ? device.Follow(o.id, OutPath(o, o.id), DownloadProgress(bar))
+                 : device.Fetch(o.id, OutPath(o, o.id), DownloadProgress(bar));
+  } catch (const client::DeviceError& e) {
+    if (e.status() != 409 || o.follow) throw;
+    throw std::runtime_error(std::string(e.what()) + "; it is still running: add --follow");
+  }
   bar.Finish();
   if (o.json) return PrintJson(FetchJson(o.id, r));
   std::printf("%s\n", r.path.string().c_str());
@@ -290,6 +295,14 @@ void AddDeviceCommands(CLI::App& app) {
   CLI::App* device = app.add_subcommand(
       "device", "Talk to a scanner over the network: status, start and fetch scans, calibration");
   device->require_subcommand(1);
+  device->footer(
+      "\nExamples (the virtual board, mirrorscand on 127.0.0.1:8080):\n"
+      "  export MIRRORSCAN_TOKEN=virtual-dev-token-not-a-secret\n"
+      "  mirrorscan device scan --wait           start a scan, show its progress\n"
+      "  mirrorscan device list\n"
+      "  mirrorscan device fetch ID              download to ID.mscan, verified\n"
+      "  mirrorscan device scan --follow         stream the archive while it is scanned\n"
+      "Options may also follow the subcommand. More: docs/cli-device.md");
   // --host/--token/--json may come before or after the subcommand.
   device->fallthrough();
   device->add_option("--host", options->host, "the device as host:port")
