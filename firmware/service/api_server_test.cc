@@ -56,7 +56,7 @@ class ApiServerTest : public ::testing::Test {
     calibration_ = std::make_unique<CalibrationStore>(dir_ / "calibration.json");
     ApiServerOptions options;
     options.firmware_version = "9.8.7";
-    options.io_timeout = std::chrono::seconds(2);
+    options.io_timeout = io_timeout_;
     // A keep-alive line is how a vanished SSE client is noticed; short here so tests are.
     options.keepalive_interval = std::chrono::milliseconds(200);
     server_ =
@@ -118,6 +118,7 @@ class ApiServerTest : public ::testing::Test {
   std::unique_ptr<CalibrationStore> calibration_;
   std::unique_ptr<ApiServer> server_;
   int port_ = 0;
+  std::chrono::seconds io_timeout_{2};
 };
 
 TEST_F(ApiServerTest, StatusNamesBoardVersionStateAndDisk) {
@@ -234,6 +235,46 @@ TEST_F(ApiServerTest, FollowStreamsTheRunningScanUpToTheFooter) {
       ReadScan(std::span(reinterpret_cast<const uint8_t*>(streamed.data()), streamed.size()));
   EXPECT_TRUE(read.report.complete) << read.report.message;
   EXPECT_EQ(read.frames.size(), 60u);
+}
+
+// Opens a follow of `id` on a raw socket with a tiny receive buffer and never reads it.
+int StalledFollower(int port, const std::string& id) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int small = 4096;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof(small));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) return -1;
+  const std::string request =
+      "GET /api/v1/scans/" + id + "/archive?follow=1 HTTP/1.1\r\nHost: x\r\n\r\n";
+  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  return fd;
+}
+
+TEST_F(ApiServerTest, ReadersThatStallNeverSlowTheScan) {
+  // Stalled clients would hold their streams for a minute; a scan that waited for them
+  // would take that long.
+  io_timeout_ = std::chrono::seconds(60);
+  Restart(
+      {.frames = 100, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 3500});
+  const auto start = std::chrono::steady_clock::now();
+  const std::string id = StartScan();
+  std::vector<int> stalled;
+  for (int i = 0; i < 3; ++i) stalled.push_back(StalledFollower(port_, id));
+  auto status = Client().Get("/api/v1/status");  // still served meanwhile
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  control_->Join();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // 100 frames x 10 ms; the ~6 MB archive is more than loopback socket buffers hold (4 MB
+  // at most), so the stalled streams really block their server threads.
+  EXPECT_GT(fs::file_size(store_->Path(id)), 5'000'000u);
+  EXPECT_LT(seconds, 30.0);  // about 1 s; generous for qemu
+  EXPECT_EQ(store_->Get(id).state, store::ScanState::kComplete);
+  for (const int fd : stalled) ::close(fd);
 }
 
 TEST_F(ApiServerTest, FollowResumesFromAnOffset) {
