@@ -1,5 +1,7 @@
 #include "common/protocol/protocol.h"
 
+#include <unistd.h>
+
 #include <fstream>
 
 #include <gtest/gtest.h>
@@ -63,7 +65,8 @@ TEST(Sha256Test, KnownVectors) {
 }
 
 TEST(Sha256Test, FileMatchesInMemoryDigest) {
-  const auto path = std::filesystem::path(testing::TempDir()) / "sha256_test.bin";
+  const auto path = std::filesystem::path(testing::TempDir()) /
+                    ("sha256_test_" + std::to_string(::getpid()) + ".bin");
   std::string bytes(200000, '\0');
   for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>(i * 7919 % 251);
   std::ofstream(path, std::ios::binary)

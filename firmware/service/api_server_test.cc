@@ -44,7 +44,7 @@ class ApiServerTest : public ::testing::Test {
 
   void Start(TestScanControl::Options scan_options, bool auth_reads = false) {
     dir_ = fs::path(testing::TempDir()) /
-           ("api_server_test_" +
+           ("api_server_test_" + std::to_string(::getpid()) + "_" +
             std::string(testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);

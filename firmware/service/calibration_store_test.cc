@@ -1,5 +1,7 @@
 #include "firmware/service/calibration_store.h"
 
+#include <unistd.h>
+
 #include <fstream>
 #include <sstream>
 
@@ -28,7 +30,7 @@ std::string ValidCalibrationText() {
 class CalibrationStoreTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::path(testing::TempDir()) / "calibration_store_test";
+    dir_ = fs::path(testing::TempDir()) / ("calibration_store_test_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
