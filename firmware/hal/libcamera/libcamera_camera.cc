@@ -1,0 +1,467 @@
+// The libcamera backend of hal::Camera. Built only into the dlopen'ed module
+// (libmirrorscan_camera_libcamera.so); see libcamera_loader.h for why.
+
+#include <sys/mman.h>
+
+#include <libcamera/libcamera.h>
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "firmware/hal/libcamera/libcamera_module_abi.h"
+#include "firmware/hal/libcamera/libcamera_stream.h"
+
+namespace mirrorscan::hal {
+namespace {
+
+namespace lc = ::libcamera;
+using libcamera_stream::FormatChoice;
+
+[[noreturn]] void Fail(HardwareError::Kind kind, const std::string& message) {
+  throw HardwareError(kind, message);
+}
+
+std::string ErrnoText(int negative_errno) { return std::strerror(-negative_errno); }
+
+std::string JoinIds(const std::vector<std::string>& ids) {
+  if (ids.empty()) return "none";
+  std::string joined;
+  for (const std::string& id : ids) joined += (joined.empty() ? "" : ", ") + ("\"" + id + "\"");
+  return joined;
+}
+
+// libcamera allows one CameraManager per process. It starts on first use and is shared
+// by the cameras, so it outlives every camera it made.
+std::shared_ptr<lc::CameraManager> Manager() {
+  static std::mutex mutex;
+  static std::shared_ptr<lc::CameraManager> manager;
+  std::lock_guard lock(mutex);
+  if (!manager) {
+    auto started = std::make_shared<lc::CameraManager>();
+    if (const int ret = started->start(); ret < 0) {
+      Fail(HardwareError::Kind::kIo, "libcamera: camera manager did not start: " + ErrnoText(ret));
+    }
+    manager = std::move(started);
+  }
+  return manager;
+}
+
+std::vector<std::string> CameraIds(const lc::CameraManager& manager) {
+  std::vector<std::string> ids;
+  for (const std::shared_ptr<lc::Camera>& camera : manager.cameras()) ids.push_back(camera->id());
+  return ids;
+}
+
+// The linear 8-bit formats a stream offers, as fourccs.
+std::vector<uint32_t> LinearFourccs(const lc::StreamConfiguration& stream) {
+  std::vector<uint32_t> fourccs;
+  for (const lc::PixelFormat& format : stream.formats().pixelformats()) {
+    if (format.modifier() == 0) fourccs.push_back(format.fourcc());
+  }
+  return fourccs;
+}
+
+std::string FormatList(const lc::StreamConfiguration& stream) {
+  std::string list;
+  for (const lc::PixelFormat& format : stream.formats().pixelformats()) {
+    list += (list.empty() ? "" : " ") + format.toString();
+  }
+  return list.empty() ? "none" : list;
+}
+
+class LibcameraCamera final : public Camera {
+ public:
+  LibcameraCamera(std::shared_ptr<lc::CameraManager> manager, std::shared_ptr<lc::Camera> camera)
+      : manager_(std::move(manager)), camera_(std::move(camera)) {}
+
+  ~LibcameraCamera() override {
+    Stop();
+    camera_->release();
+  }
+
+  void Configure(const CameraConfig& config) override {
+    if (streaming())
+      Fail(HardwareError::Kind::kInvalidArgument,
+           Name() + ": Configure() while streaming; Stop() first");
+    const libcamera_stream::SensorControls controls = libcamera_stream::SensorControlsFor(config);
+    // Fixed exposure, gain and rate are what the peak extractor's thresholds assume, so
+    // a camera that cannot fix them is refused rather than left on auto.
+    RequireControl(lc::controls::ExposureTime, "exposure_us", controls.exposure_us);
+    RequireControl(lc::controls::AnalogueGain, "gain", controls.analogue_gain);
+    RequireControl(lc::controls::FrameDurationLimits, "fps", controls.frame_duration_us);
+    config_ = config;
+    controls_ = controls;
+    configured_ = true;
+  }
+
+  void Start(FrameCallback on_frame, EndCallback on_end) override {
+    if (streaming()) Fail(HardwareError::Kind::kInvalidArgument, Name() + ": already streaming");
+    if (!configured_)
+      Fail(HardwareError::Kind::kInvalidArgument, Name() + ": Start() before Configure()");
+    if (!on_frame) Fail(HardwareError::Kind::kInvalidArgument, Name() + ": no frame callback");
+    try {
+      ConfigureStream();
+      AllocateBuffers();
+      camera_->requestCompleted.connect(this, &LibcameraCamera::OnRequestCompleted);
+      camera_->disconnected.connect(this, &LibcameraCamera::OnDisconnected);
+      {
+        std::lock_guard lock(mutex_);
+        completed_.clear();
+        stop_ = false;
+        disconnected_ = false;
+      }
+      pool_ = std::make_shared<FramePool>(config_.width, config_.height, config_.buffer_count);
+      sequence_ = libcamera_stream::SequenceCounter();
+      dropped_ = 0;
+      on_frame_ = std::move(on_frame);
+      on_end_ = std::move(on_end);
+
+      lc::ControlList start_controls(camera_->controls());
+      if (camera_->controls().count(&lc::controls::AeEnable) != 0) {
+        start_controls.set(lc::controls::AeEnable, controls_.ae_enable);
+      }
+      start_controls.set(lc::controls::ExposureTime, controls_.exposure_us);
+      start_controls.set(lc::controls::AnalogueGain, controls_.analogue_gain);
+      start_controls.set(lc::controls::FrameDurationLimits,
+                         {controls_.frame_duration_us, controls_.frame_duration_us});
+      if (const int ret = camera_->start(&start_controls); ret < 0) {
+        Fail(HardwareError::Kind::kIo, Name() + ": start failed: " + ErrnoText(ret));
+      }
+      camera_started_ = true;
+      for (const std::unique_ptr<lc::Request>& request : requests_) {
+        if (const int ret = camera_->queueRequest(request.get()); ret < 0) {
+          Fail(HardwareError::Kind::kIo, Name() + ": queueing a request failed: " + ErrnoText(ret));
+        }
+      }
+    } catch (...) {
+      Release();
+      throw;
+    }
+    worker_ = std::thread([this] { Run(); });
+  }
+
+  void Stop() override {
+    if (!worker_.joinable()) return;
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    worker_.join();
+    Release();
+  }
+
+  bool streaming() const override { return worker_.joinable(); }
+  uint64_t dropped() const override { return dropped_.load(); }
+  const CameraConfig& config() const override { return config_; }
+
+ private:
+  std::string Name() const { return "camera \"" + camera_->id() + "\""; }
+
+  // The camera must offer `control`, and `value` must lie in its range (HardwareError
+  // kInvalidArgument "camera.<key>: ..." otherwise).
+  template <typename T, typename V>
+  void RequireControl(const lc::Control<T>& control, const std::string& key, V value) const {
+    const auto it = camera_->controls().find(&control);
+    if (it == camera_->controls().end()) {
+      Fail(HardwareError::Kind::kInvalidArgument,
+           "camera." + key + ": " + Name() + " has no " + control.name() + " control");
+    }
+    using Scalar = std::conditional_t<std::is_same_v<T, lc::Span<const int64_t, 2>>, int64_t, T>;
+    const lc::ControlInfo& info = it->second;
+    // A range entry may be unset (ControlTypeNone) or an array; only a scalar bounds.
+    auto bound = [](const lc::ControlValue& v) -> std::optional<Scalar> {
+      if (v.isNone() || v.isArray()) return std::nullopt;
+      return v.get<Scalar>();
+    };
+    const std::optional<Scalar> min = bound(info.min());
+    const std::optional<Scalar> max = bound(info.max());
+    if ((min && static_cast<Scalar>(value) < *min) || (max && static_cast<Scalar>(value) > *max)) {
+      Fail(HardwareError::Kind::kInvalidArgument, "camera." + key + ": " + Name() + " accepts " +
+                                                      control.name() + " " + info.toString() +
+                                                      ", asked for " + std::to_string(value));
+    }
+  }
+
+  // Picks role and format (libcamera_stream::ChooseFormat), sets the size and applies it.
+  void ConfigureStream() {
+    std::unique_ptr<lc::CameraConfiguration> best;
+    std::optional<FormatChoice> best_format;
+    std::string offered;
+    // The processed stream first (the ISP's Y plane is denoised and lens-shaded), the
+    // sensor's raw stream when it is the only one with an 8-bit grey format.
+    for (const lc::StreamRole role : {lc::StreamRole::Viewfinder, lc::StreamRole::Raw}) {
+      std::unique_ptr<lc::CameraConfiguration> candidate = camera_->generateConfiguration({role});
+      if (!candidate || candidate->empty()) continue;
+      offered += (offered.empty() ? "" : "; ") + FormatList(candidate->at(0));
+      const std::optional<FormatChoice> format =
+          libcamera_stream::ChooseFormat(LinearFourccs(candidate->at(0)));
+      if (format && (!best_format || format->layout < best_format->layout)) {
+        best = std::move(candidate);
+        best_format = format;
+      }
+    }
+    if (!best) {
+      Fail(HardwareError::Kind::kInvalidArgument,
+           Name() + " offers no 8-bit grey, YUV420 or 8-bit raw format (offers: " +
+               (offered.empty() ? "nothing" : offered) + ")");
+    }
+    lc::StreamConfiguration& stream = best->at(0);
+    const lc::PixelFormat wanted(best_format->fourcc);
+    const lc::Size wanted_size(static_cast<unsigned>(config_.width),
+                               static_cast<unsigned>(config_.height));
+    stream.pixelFormat = wanted;
+    stream.size = wanted_size;
+    // stream.bufferCount stays the pipeline's own: frames are copied out at once, so
+    // libcamera needs only enough buffers to keep the sensor fed, while the consumer's
+    // slack is the hal pool (CameraConfig::buffer_count).
+    if (best->validate() == lc::CameraConfiguration::Invalid) {
+      Fail(HardwareError::Kind::kInvalidArgument,
+           Name() + ": cannot configure " + wanted.toString() + " " + wanted_size.toString());
+    }
+    if (stream.pixelFormat != wanted || stream.size != wanted_size) {
+      std::string sizes;
+      for (const lc::Size& size : stream.formats().sizes(wanted)) {
+        sizes += (sizes.empty() ? "" : " ") + size.toString();
+      }
+      Fail(HardwareError::Kind::kInvalidArgument,
+           "camera.width/height: " + Name() + " cannot deliver " + wanted.toString() + " " +
+               wanted_size.toString() + " (it would give " + stream.toString() +
+               "; sizes: " + (sizes.empty() ? "none listed" : sizes) + ")");
+    }
+    if (const int ret = camera_->configure(best.get()); ret < 0) {
+      Fail(HardwareError::Kind::kIo, Name() + ": configure failed: " + ErrnoText(ret));
+    }
+    stream_ = stream.stream();
+    stride_ = stream.stride;
+    stream_config_ = std::move(best);
+  }
+
+  // Allocates the stream's buffers, maps the plane each frame is read from, and makes
+  // one request per buffer.
+  void AllocateBuffers() {
+    allocator_ = std::make_unique<lc::FrameBufferAllocator>(camera_);
+    if (const int ret = allocator_->allocate(stream_); ret < 0) {
+      Fail(HardwareError::Kind::kIo, Name() + ": allocating buffers failed: " + ErrnoText(ret));
+    }
+    for (const std::unique_ptr<lc::FrameBuffer>& buffer : allocator_->buffers(stream_)) {
+      // Plane 0 is the grey image, the Y plane of YUV420, or the Bayer mosaic. Its offset
+      // need not be page aligned, so the map starts at the file's beginning.
+      const lc::FrameBuffer::Plane& plane = buffer->planes().at(0);
+      const size_t offset =
+          plane.offset == lc::FrameBuffer::Plane::kInvalidOffset ? 0 : plane.offset;
+      const size_t length = offset + plane.length;
+      void* address = mmap(nullptr, length, PROT_READ, MAP_SHARED, plane.fd.get(), 0);
+      if (address == MAP_FAILED) {
+        Fail(HardwareError::Kind::kIo,
+             Name() + ": mapping a buffer failed: " + std::strerror(errno));
+      }
+      mappings_.push_back({address, length});
+      planes_.push_back(
+          {buffer.get(),
+           std::span<const uint8_t>(static_cast<const uint8_t*>(address) + offset, plane.length)});
+      std::unique_ptr<lc::Request> request = camera_->createRequest(requests_.size());
+      if (!request) Fail(HardwareError::Kind::kIo, Name() + ": cannot create a request");
+      if (const int ret = request->addBuffer(stream_, buffer.get()); ret < 0) {
+        Fail(HardwareError::Kind::kIo,
+             Name() + ": adding a buffer to a request failed: " + ErrnoText(ret));
+      }
+      requests_.push_back(std::move(request));
+    }
+  }
+
+  // Stops the camera (if started) and frees what Start() made, in reverse order.
+  void Release() {
+    if (camera_started_) {
+      // Cancels the queued requests; they complete, and are discarded, before it returns.
+      camera_->stop();
+      camera_started_ = false;
+    }
+    camera_->requestCompleted.disconnect(this);
+    camera_->disconnected.disconnect(this);
+    {
+      std::lock_guard lock(mutex_);
+      completed_.clear();
+    }
+    requests_.clear();
+    planes_.clear();
+    for (const Mapping& mapping : mappings_) munmap(mapping.address, mapping.length);
+    mappings_.clear();
+    if (allocator_ && stream_) allocator_->free(stream_);
+    allocator_.reset();
+    stream_ = nullptr;
+    stream_config_.reset();
+    on_frame_ = nullptr;
+    on_end_ = nullptr;
+  }
+
+  // libcamera's thread: only hand the request to ours.
+  void OnRequestCompleted(lc::Request* request) {
+    {
+      std::lock_guard lock(mutex_);
+      completed_.push_back(request);
+    }
+    wake_.notify_all();
+  }
+
+  void OnDisconnected() {
+    {
+      std::lock_guard lock(mutex_);
+      disconnected_ = true;
+    }
+    wake_.notify_all();
+  }
+
+  // The camera's thread: turns completed requests into frames and queues them again.
+  void Run() {
+    // A sensor that stays silent for ten frame periods (at least a second) has stalled.
+    const auto stall = std::max<std::chrono::microseconds>(
+        std::chrono::seconds(1), std::chrono::microseconds(10 * controls_.frame_duration_us));
+    try {
+      while (true) {
+        lc::Request* request = nullptr;
+        {
+          std::unique_lock lock(mutex_);
+          const bool woke = wake_.wait_for(
+              lock, stall, [&] { return stop_ || disconnected_ || !completed_.empty(); });
+          if (stop_) return;
+          if (disconnected_) Fail(HardwareError::Kind::kIo, Name() + " was disconnected");
+          if (!woke) {
+            Fail(HardwareError::Kind::kTimeout,
+                 Name() + ": no frame for " + std::to_string(stall.count() / 1000) + " ms");
+          }
+          request = completed_.front();
+          completed_.pop_front();
+        }
+        Deliver(request);
+        request->reuse(lc::Request::ReuseBuffers);
+        if (const int ret = camera_->queueRequest(request); ret < 0) {
+          Fail(HardwareError::Kind::kIo, Name() + ": queueing a request failed: " + ErrnoText(ret));
+        }
+      }
+    } catch (const HardwareError& error) {
+      if (on_end_) on_end_(&error);
+    } catch (const std::exception& e) {
+      const HardwareError error(HardwareError::Kind::kIo, Name() + ": " + e.what());
+      if (on_end_) on_end_(&error);
+    }
+  }
+
+  // Copies a completed request's frame into a free pool buffer and hands it on; counts it
+  // as dropped when the consumer holds every buffer. The copy packs the stride away and
+  // keeps libcamera's buffers always queued, so the consumer's pace never stalls the
+  // sensor and Frame pixels outlive the camera.
+  void Deliver(lc::Request* request) {
+    if (request->status() == lc::Request::RequestCancelled) {
+      Fail(HardwareError::Kind::kIo, Name() + ": the pipeline cancelled a request");
+    }
+    const lc::FrameBuffer* buffer = request->findBuffer(stream_);
+    if (buffer == nullptr)
+      Fail(HardwareError::Kind::kIo, Name() + ": a request came back without its buffer");
+    const lc::FrameMetadata& metadata = buffer->metadata();
+    // A frame in error is not delivered; the next good frame's sequence gap counts it.
+    if (metadata.status != lc::FrameMetadata::FrameSuccess) return;
+    const libcamera_stream::SequenceCounter::Step step = sequence_.Next(metadata.sequence);
+    dropped_ += step.missed;
+
+    const std::optional<int> slot = pool_->Acquire();
+    if (!slot) {
+      ++dropped_;
+      return;
+    }
+    try {
+      libcamera_stream::PackPlane(PlaneOf(buffer), stride_, config_.width, config_.height,
+                                  pool_->pixels(*slot));
+    } catch (...) {
+      pool_->Return(*slot);
+      throw;
+    }
+    const lc::ControlList& result = request->metadata();
+    const std::optional<int64_t> sensor_ns = result.get(lc::controls::SensorTimestamp);
+    // Without SensorTimestamp, the buffer's (V4L2) timestamp is already CLOCK_MONOTONIC.
+    const int64_t timestamp_ns = sensor_ns ? libcamera_stream::SteadyNsFromBoottimeNs(*sensor_ns)
+                                           : static_cast<int64_t>(metadata.timestamp);
+    const int exposure_us = result.get(lc::controls::ExposureTime).value_or(config_.exposure_us);
+    const double gain =
+        result.get(lc::controls::AnalogueGain).value_or(static_cast<float>(config_.gain));
+    on_frame_(pool_->MakeFrame(*slot, step.sequence, timestamp_ns, exposure_us, gain));
+  }
+
+  std::span<const uint8_t> PlaneOf(const lc::FrameBuffer* buffer) const {
+    for (const auto& [owner, plane] : planes_) {
+      if (owner == buffer) return plane;
+    }
+    Fail(HardwareError::Kind::kIo, Name() + ": a buffer that was never allocated came back");
+  }
+
+  struct Mapping {
+    void* address;
+    size_t length;
+  };
+
+  // Declared first, destroyed last: the manager outlives the camera it made.
+  std::shared_ptr<lc::CameraManager> manager_;
+  std::shared_ptr<lc::Camera> camera_;
+  CameraConfig config_;
+  libcamera_stream::SensorControls controls_;
+  bool configured_ = false;
+
+  // From Start() to Stop().
+  std::unique_ptr<lc::CameraConfiguration> stream_config_;
+  lc::Stream* stream_ = nullptr;
+  size_t stride_ = 0;
+  std::unique_ptr<lc::FrameBufferAllocator> allocator_;
+  std::vector<Mapping> mappings_;
+  std::vector<std::pair<const lc::FrameBuffer*, std::span<const uint8_t>>> planes_;
+  std::vector<std::unique_ptr<lc::Request>> requests_;
+  bool camera_started_ = false;
+  std::shared_ptr<FramePool> pool_;
+  libcamera_stream::SequenceCounter sequence_;
+  FrameCallback on_frame_;
+  EndCallback on_end_;
+  std::thread worker_;
+  std::atomic<uint64_t> dropped_{0};
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<lc::Request*> completed_;  // guarded by mutex_
+  bool stop_ = false;                   // guarded by mutex_
+  bool disconnected_ = false;           // guarded by mutex_
+};
+
+std::vector<std::string> ListCameras() { return CameraIds(*Manager()); }
+
+std::unique_ptr<Camera> OpenCamera(const std::string& camera_id) {
+  std::shared_ptr<lc::CameraManager> manager = Manager();
+  std::shared_ptr<lc::Camera> camera = manager->get(camera_id);
+  if (!camera) {
+    Fail(HardwareError::Kind::kIo, "libcamera: no camera \"" + camera_id +
+                                       "\"; cameras available: " + JoinIds(CameraIds(*manager)));
+  }
+  if (const int ret = camera->acquire(); ret < 0) {
+    Fail(HardwareError::Kind::kIo,
+         "libcamera: camera \"" + camera_id + "\" is in use elsewhere: " + ErrnoText(ret));
+  }
+  return std::make_unique<LibcameraCamera>(std::move(manager), std::move(camera));
+}
+
+}  // namespace
+}  // namespace mirrorscan::hal
+
+extern "C" __attribute__((visibility("default"))) const mirrorscan::hal::LibcameraModuleApi*
+mirrorscan_camera_libcamera_module() {
+  static const mirrorscan::hal::LibcameraModuleApi api{mirrorscan::hal::kLibcameraModuleAbiVersion,
+                                                       &mirrorscan::hal::ListCameras,
+                                                       &mirrorscan::hal::OpenCamera};
+  return &api;
+}
