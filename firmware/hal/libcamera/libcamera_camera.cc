@@ -179,9 +179,11 @@ class LibcameraCamera final : public Camera {
     }
     using Scalar = std::conditional_t<std::is_same_v<T, lc::Span<const int64_t, 2>>, int64_t, T>;
     const lc::ControlInfo& info = it->second;
-    // A range entry may be unset (ControlTypeNone) or an array; only a scalar bounds.
+    // A range entry may be unset, an array or of another type; only a matching scalar bounds.
     auto bound = [](const lc::ControlValue& v) -> std::optional<Scalar> {
-      if (v.isNone() || v.isArray()) return std::nullopt;
+      if (v.isArray() || v.type() != lc::details::control_type<Scalar>::value) {
+        return std::nullopt;
+      }
       return v.get<Scalar>();
     };
     const std::optional<Scalar> min = bound(info.min());
