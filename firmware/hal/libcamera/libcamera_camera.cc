@@ -13,6 +13,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <thread>
@@ -120,8 +121,10 @@ class LibcameraCamera final : public Camera {
         stop_ = false;
         disconnected_ = false;
       }
-      pool_ = std::make_shared<FramePool>(config_.width, config_.height, config_.buffer_count);
-      sequence_ = libcamera_stream::SequenceCounter();
+      // A fresh pool each time: frames still held from an earlier stream keep their own.
+      assembler_.emplace(
+          std::make_shared<FramePool>(config_.width, config_.height, config_.buffer_count),
+          config_.width, config_.height);
       dropped_ = 0;
       on_frame_ = std::move(on_frame);
       on_end_ = std::move(on_end);
@@ -345,11 +348,14 @@ class LibcameraCamera final : public Camera {
           request = completed_.front();
           completed_.pop_front();
         }
-        Deliver(request);
+        // The frame is copied out: the request goes back to the sensor before the frame
+        // goes on.
+        Frame frame = TakeFrame(request);
         request->reuse(lc::Request::ReuseBuffers);
         if (const int ret = camera_->queueRequest(request); ret < 0) {
           Fail(HardwareError::Kind::kIo, Name() + ": queueing a request failed: " + ErrnoText(ret));
         }
+        if (frame.valid()) on_frame_(std::move(frame));
       }
     } catch (const HardwareError& error) {
       if (on_end_) on_end_(&error);
@@ -359,11 +365,11 @@ class LibcameraCamera final : public Camera {
     }
   }
 
-  // Copies a completed request's frame into a free pool buffer and hands it on; counts it
-  // as dropped when the consumer holds every buffer. The copy packs the stride away and
-  // keeps libcamera's buffers always queued, so the consumer's pace never stalls the
-  // sensor and Frame pixels outlive the camera.
-  void Deliver(lc::Request* request) {
+  // Copies a completed request's frame into a free pool buffer (FrameAssembler); an
+  // invalid Frame when it is dropped (no free buffer, or a frame in error). The copy packs
+  // the stride away and keeps libcamera's buffers always queued, so the consumer's pace
+  // never stalls the sensor and Frame pixels outlive the camera.
+  Frame TakeFrame(lc::Request* request) {
     if (request->status() == lc::Request::RequestCancelled) {
       Fail(HardwareError::Kind::kIo, Name() + ": the pipeline cancelled a request");
     }
@@ -372,31 +378,21 @@ class LibcameraCamera final : public Camera {
       Fail(HardwareError::Kind::kIo, Name() + ": a request came back without its buffer");
     const lc::FrameMetadata& metadata = buffer->metadata();
     // A frame in error is not delivered; the next good frame's sequence gap counts it.
-    if (metadata.status != lc::FrameMetadata::FrameSuccess) return;
-    const libcamera_stream::SequenceCounter::Step step = sequence_.Next(metadata.sequence);
-    dropped_ += step.missed;
-
-    const std::optional<int> slot = pool_->Acquire();
-    if (!slot) {
-      ++dropped_;
-      return;
-    }
-    try {
-      libcamera_stream::PackPlane(PlaneOf(buffer), stride_, config_.width, config_.height,
-                                  pool_->pixels(*slot));
-    } catch (...) {
-      pool_->Return(*slot);
-      throw;
-    }
+    if (metadata.status != lc::FrameMetadata::FrameSuccess) return Frame();
     const lc::ControlList& result = request->metadata();
     const std::optional<int64_t> sensor_ns = result.get(lc::controls::SensorTimestamp);
+    libcamera_stream::SensorFrame frame;
+    frame.sensor_sequence = metadata.sequence;
+    frame.plane = PlaneOf(buffer);
+    frame.stride = stride_;
     // Without SensorTimestamp, the buffer's (V4L2) timestamp is already CLOCK_MONOTONIC.
-    const int64_t timestamp_ns = sensor_ns ? libcamera_stream::SteadyNsFromBoottimeNs(*sensor_ns)
-                                           : static_cast<int64_t>(metadata.timestamp);
-    const int exposure_us = result.get(lc::controls::ExposureTime).value_or(config_.exposure_us);
-    const double gain =
-        result.get(lc::controls::AnalogueGain).value_or(static_cast<float>(config_.gain));
-    on_frame_(pool_->MakeFrame(*slot, step.sequence, timestamp_ns, exposure_us, gain));
+    frame.timestamp_ns = sensor_ns ? libcamera_stream::SteadyNsFromBoottimeNs(*sensor_ns)
+                                   : static_cast<int64_t>(metadata.timestamp);
+    frame.exposure_us = result.get(lc::controls::ExposureTime).value_or(config_.exposure_us);
+    frame.gain = result.get(lc::controls::AnalogueGain).value_or(static_cast<float>(config_.gain));
+    libcamera_stream::FrameAssembler::Assembled assembled = assembler_->Assemble(frame);
+    dropped_ += assembled.dropped;
+    return std::move(assembled.frame);
   }
 
   std::span<const uint8_t> PlaneOf(const lc::FrameBuffer* buffer) const {
@@ -427,8 +423,7 @@ class LibcameraCamera final : public Camera {
   std::vector<std::pair<const lc::FrameBuffer*, std::span<const uint8_t>>> planes_;
   std::vector<std::unique_ptr<lc::Request>> requests_;
   bool camera_started_ = false;
-  std::shared_ptr<FramePool> pool_;
-  libcamera_stream::SequenceCounter sequence_;
+  std::optional<libcamera_stream::FrameAssembler> assembler_;
   FrameCallback on_frame_;
   EndCallback on_end_;
   std::thread worker_;

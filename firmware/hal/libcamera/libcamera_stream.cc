@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <utility>
 
 namespace mirrorscan::hal::libcamera_stream {
 
@@ -86,6 +87,24 @@ SequenceCounter::Step SequenceCounter::Next(uint32_t sensor_sequence) {
   last_sensor_ = sensor_sequence;
   last_ += advance;
   return Step{last_, advance - 1};
+}
+
+FrameAssembler::FrameAssembler(std::shared_ptr<FramePool> pool, int width, int height)
+    : pool_(std::move(pool)), width_(width), height_(height) {}
+
+FrameAssembler::Assembled FrameAssembler::Assemble(const SensorFrame& frame) {
+  const SequenceCounter::Step step = sequence_.Next(frame.sensor_sequence);
+  const std::optional<int> buffer = pool_->Acquire();
+  if (!buffer) return Assembled{Frame(), step.missed + 1};
+  try {
+    PackPlane(frame.plane, frame.stride, width_, height_, pool_->pixels(*buffer));
+  } catch (...) {
+    pool_->Return(*buffer);
+    throw;
+  }
+  return Assembled{
+      pool_->MakeFrame(*buffer, step.sequence, frame.timestamp_ns, frame.exposure_us, frame.gain),
+      step.missed};
 }
 
 int64_t SteadyNsFromBoottimeNs(int64_t boottime_ns) {

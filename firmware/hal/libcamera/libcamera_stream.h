@@ -8,6 +8,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -85,6 +86,36 @@ class SequenceCounter {
   bool started_ = false;
   uint64_t last_ = 0;  // hal sequence of the previous frame
   uint32_t last_sensor_ = 0;
+};
+
+// One completed sensor frame, as the backend reads it from a libcamera request.
+struct SensorFrame {
+  uint32_t sensor_sequence = 0;    // FrameMetadata::sequence
+  std::span<const uint8_t> plane;  // the mapped first plane
+  size_t stride = 0;               // bytes between rows of `plane`
+  int64_t timestamp_ns = 0;        // steady clock
+  int exposure_us = 0;
+  double gain = 1.0;
+};
+
+// Turns sensor frames into frames of the hal pool: sequence from the sensor's counter,
+// pixels packed into a free pool buffer, drops counted for counter gaps and for frames
+// that found every buffer with the consumer. Never blocks.
+class FrameAssembler {
+ public:
+  FrameAssembler(std::shared_ptr<FramePool> pool, int width, int height);
+
+  struct Assembled {
+    Frame frame;           // invalid when this frame is dropped for want of a buffer
+    uint64_t dropped = 0;  // frames lost since the previous call, this one included
+  };
+  // Throws HardwareError kIo (PackPlane, SequenceCounter); the pool buffer is returned.
+  Assembled Assemble(const SensorFrame& frame);
+
+ private:
+  std::shared_ptr<FramePool> pool_;
+  int width_, height_;
+  SequenceCounter sequence_;
 };
 
 // libcamera's SensorTimestamp is defined on CLOCK_BOOTTIME; the hal's timestamps are on

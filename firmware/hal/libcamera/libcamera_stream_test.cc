@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 namespace mirrorscan::hal::libcamera_stream {
@@ -168,6 +170,90 @@ TEST(SequenceCounter, RepeatedOrBackwardSequenceIsAnError) {
   EXPECT_THROW(counter.Next(49), HardwareError);
   // The counter is unharmed by the rejected steps.
   EXPECT_EQ(counter.Next(51).sequence, 1U);
+}
+
+// A sensor frame whose every pixel is `value`, rows padded to `stride`.
+struct PaddedSensorFrame {
+  std::vector<uint8_t> pixels;
+  SensorFrame frame;
+  PaddedSensorFrame(uint32_t sensor_sequence, int width, int height, size_t stride, uint8_t value)
+      : pixels(stride * static_cast<size_t>(height), 0xEE) {
+    for (int y = 0; y < height; ++y) {
+      std::fill_n(pixels.begin() + static_cast<ptrdiff_t>(static_cast<size_t>(y) * stride), width,
+                  value);
+    }
+    frame.sensor_sequence = sensor_sequence;
+    frame.plane = pixels;
+    frame.stride = stride;
+    frame.timestamp_ns = 1'000'000'000LL + sensor_sequence * 33'333'333LL;
+    frame.exposure_us = 5000;
+    frame.gain = 2.0;
+  }
+};
+
+bool AllPixelsAre(const Frame& frame, uint8_t value) {
+  const ImageView view = frame.view();
+  for (int y = 0; y < view.height; ++y) {
+    for (int x = 0; x < view.width; ++x) {
+      if (view.data[y * view.stride + x] != value) return false;
+    }
+  }
+  return true;
+}
+
+TEST(FrameAssembler, SlowConsumerLosesFramesCountedNeverBlocks) {
+  const int width = 40, height = 30;
+  const size_t stride = 64;
+  FrameAssembler assembler(std::make_shared<FramePool>(width, height, 2), width, height);
+  uint64_t dropped = 0;
+  auto assemble = [&](uint32_t sensor_sequence, uint8_t value) {
+    PaddedSensorFrame in(sensor_sequence, width, height, stride, value);
+    FrameAssembler::Assembled out = assembler.Assemble(in.frame);
+    dropped += out.dropped;
+    return std::move(out.frame);
+  };
+
+  // The consumer holds the first two frames: the pool of two is empty.
+  Frame first = assemble(500, 10);
+  Frame second = assemble(501, 11);
+  ASSERT_TRUE(first.valid());
+  ASSERT_TRUE(second.valid());
+  EXPECT_EQ(first.sequence(), 0U);
+  EXPECT_EQ(second.sequence(), 1U);
+  EXPECT_EQ(first.timestamp_ns(), 1'000'000'000LL + 500 * 33'333'333LL);
+  EXPECT_EQ(first.exposure_us(), 5000);
+  EXPECT_DOUBLE_EQ(first.gain(), 2.0);
+  EXPECT_EQ(first.view().width, width);
+  EXPECT_EQ(first.view().stride, width);  // packed
+  EXPECT_TRUE(AllPixelsAre(first, 10));
+  EXPECT_TRUE(AllPixelsAre(second, 11));
+  EXPECT_EQ(dropped, 0U);
+
+  // Sensor frames 502 and 503 find no buffer: dropped at once, counted.
+  EXPECT_FALSE(assemble(502, 12).valid());
+  EXPECT_FALSE(assemble(503, 13).valid());
+  EXPECT_EQ(dropped, 2U);
+
+  // One buffer comes back; the sensor skipped 504..505 (a pipeline drop): gap counted.
+  first.Release();
+  Frame next = assemble(506, 16);
+  ASSERT_TRUE(next.valid());
+  EXPECT_EQ(next.sequence(), 6U);
+  EXPECT_TRUE(AllPixelsAre(next, 16));
+  EXPECT_TRUE(AllPixelsAre(second, 11));  // a held frame is untouched
+  EXPECT_EQ(dropped, 4U);
+  // Every sensor frame 500..506 is either delivered (0, 1, 6) or counted as dropped.
+  EXPECT_EQ(3U + dropped, 7U);
+}
+
+TEST(FrameAssembler, ABadBufferIsAnErrorAndReturnsThePoolBuffer) {
+  const int width = 40, height = 30;
+  auto pool = std::make_shared<FramePool>(width, height, 2);
+  FrameAssembler assembler(pool, width, height);
+  PaddedSensorFrame in(7, width, height, 64, 1);
+  in.frame.plane = in.frame.plane.first(64 * 10);  // ten rows of thirty
+  EXPECT_THROW(assembler.Assemble(in.frame), HardwareError);
+  EXPECT_EQ(pool->free_count(), 2);
 }
 
 int64_t NowNs(clockid_t clock) {
