@@ -17,6 +17,7 @@
 #include <span>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include "firmware/hal/libcamera/libcamera_module_abi.h"
@@ -91,15 +92,17 @@ class LibcameraCamera final : public Camera {
   }
 
   void Configure(const CameraConfig& config) override {
-    if (streaming())
+    if (streaming()) {
       Fail(HardwareError::Kind::kInvalidArgument,
            Name() + ": Configure() while streaming; Stop() first");
+    }
     const libcamera_stream::SensorControls controls = libcamera_stream::SensorControlsFor(config);
     // Fixed exposure, gain and rate are what the peak extractor's thresholds assume, so
-    // a camera that cannot fix them is refused rather than left on auto.
-    RequireControl(lc::controls::ExposureTime, "exposure_us", controls.exposure_us);
-    RequireControl(lc::controls::AnalogueGain, "gain", controls.analogue_gain);
-    RequireControl(lc::controls::FrameDurationLimits, "fps", controls.frame_duration_us);
+    // a camera that cannot fix them is refused rather than left on auto. Their ranges
+    // depend on the sensor mode, so Start() checks them once the stream is configured.
+    RequireControl(lc::controls::ExposureTime, "exposure_us");
+    RequireControl(lc::controls::AnalogueGain, "gain");
+    RequireControl(lc::controls::FrameDurationLimits, "fps");
     config_ = config;
     controls_ = controls;
     configured_ = true;
@@ -107,11 +110,16 @@ class LibcameraCamera final : public Camera {
 
   void Start(FrameCallback on_frame, EndCallback on_end) override {
     if (streaming()) Fail(HardwareError::Kind::kInvalidArgument, Name() + ": already streaming");
-    if (!configured_)
+    if (!configured_) {
       Fail(HardwareError::Kind::kInvalidArgument, Name() + ": Start() before Configure()");
+    }
     if (!on_frame) Fail(HardwareError::Kind::kInvalidArgument, Name() + ": no frame callback");
     try {
       ConfigureStream();
+      CheckRange(lc::controls::ExposureTime, "exposure_us", controls_.exposure_us, "us");
+      CheckRange(lc::controls::AnalogueGain, "gain", controls_.analogue_gain, "");
+      CheckRange(lc::controls::FrameDurationLimits, "fps", controls_.frame_duration_us,
+                 "us frame duration");
       AllocateBuffers();
       camera_->requestCompleted.connect(this, &LibcameraCamera::OnRequestCompleted);
       camera_->disconnected.connect(this, &LibcameraCamera::OnDisconnected);
@@ -171,15 +179,21 @@ class LibcameraCamera final : public Camera {
  private:
   std::string Name() const { return "camera \"" + camera_->id() + "\""; }
 
-  // The camera must offer `control`, and `value` must lie in its range (HardwareError
-  // kInvalidArgument "camera.<key>: ..." otherwise).
-  template <typename T, typename V>
-  void RequireControl(const lc::Control<T>& control, const std::string& key, V value) const {
-    const auto it = camera_->controls().find(&control);
-    if (it == camera_->controls().end()) {
+  // The camera must offer `control` (HardwareError kInvalidArgument "camera.<key>: ...").
+  template <typename T>
+  void RequireControl(const lc::Control<T>& control, const std::string& key) const {
+    if (camera_->controls().count(&control) == 0) {
       Fail(HardwareError::Kind::kInvalidArgument,
            "camera." + key + ": " + Name() + " has no " + control.name() + " control");
     }
+  }
+
+  // `value` must lie in the range the configured camera reports for `control`.
+  template <typename T, typename V>
+  void CheckRange(const lc::Control<T>& control, const std::string& key, V value,
+                  const std::string& unit) const {
+    const auto it = camera_->controls().find(&control);
+    if (it == camera_->controls().end()) return;  // Configure() required it
     using Scalar = std::conditional_t<std::is_same_v<T, lc::Span<const int64_t, 2>>, int64_t, T>;
     const lc::ControlInfo& info = it->second;
     // A range entry may be unset, an array or of another type; only a matching scalar bounds.
@@ -192,9 +206,10 @@ class LibcameraCamera final : public Camera {
     const std::optional<Scalar> min = bound(info.min());
     const std::optional<Scalar> max = bound(info.max());
     if ((min && static_cast<Scalar>(value) < *min) || (max && static_cast<Scalar>(value) > *max)) {
-      Fail(HardwareError::Kind::kInvalidArgument, "camera." + key + ": " + Name() + " accepts " +
-                                                      control.name() + " " + info.toString() +
-                                                      ", asked for " + std::to_string(value));
+      Fail(HardwareError::Kind::kInvalidArgument,
+           "camera." + key + ": " + Name() + " accepts " + control.name() + " " + info.toString() +
+               " at " + std::to_string(config_.width) + "x" + std::to_string(config_.height) +
+               ", asked for " + std::to_string(value) + (unit.empty() ? "" : " " + unit));
     }
   }
 
@@ -374,8 +389,9 @@ class LibcameraCamera final : public Camera {
       Fail(HardwareError::Kind::kIo, Name() + ": the pipeline cancelled a request");
     }
     const lc::FrameBuffer* buffer = request->findBuffer(stream_);
-    if (buffer == nullptr)
+    if (buffer == nullptr) {
       Fail(HardwareError::Kind::kIo, Name() + ": a request came back without its buffer");
+    }
     const lc::FrameMetadata& metadata = buffer->metadata();
     // A frame in error is not delivered; the next good frame's sequence gap counts it.
     if (metadata.status != lc::FrameMetadata::FrameSuccess) return Frame();
