@@ -213,58 +213,74 @@ class LibcameraCamera final : public Camera {
     }
   }
 
-  // Picks role and format (libcamera_stream::ChooseFormat), sets the size and applies it.
+  // Picks role and format and applies the size. Candidates go in order of preference
+  // (libcamera_stream::ChooseFormat per role; a better layout first, the processed
+  // Viewfinder stream before Raw on a tie); the first that takes the size exactly wins.
+  // A raw stream, for instance, only offers the sensor's own modes.
   void ConfigureStream() {
-    std::unique_ptr<lc::CameraConfiguration> best;
-    std::optional<FormatChoice> best_format;
+    struct Candidate {
+      lc::StreamRole role;
+      std::unique_ptr<lc::CameraConfiguration> config;
+      FormatChoice format;
+    };
+    std::vector<Candidate> candidates;
     std::string offered;
-    // The processed stream first (the ISP's Y plane is denoised and lens-shaded), the
-    // sensor's raw stream when it is the only one with an 8-bit grey format.
     for (const lc::StreamRole role : {lc::StreamRole::Viewfinder, lc::StreamRole::Raw}) {
-      std::unique_ptr<lc::CameraConfiguration> candidate = camera_->generateConfiguration({role});
-      if (!candidate || candidate->empty()) continue;
-      offered += (offered.empty() ? "" : "; ") + FormatList(candidate->at(0));
-      const std::optional<FormatChoice> format =
-          libcamera_stream::ChooseFormat(LinearFourccs(candidate->at(0)));
-      if (format && (!best_format || format->layout < best_format->layout)) {
-        best = std::move(candidate);
-        best_format = format;
+      std::unique_ptr<lc::CameraConfiguration> config = camera_->generateConfiguration({role});
+      if (!config || config->empty()) continue;
+      offered += (offered.empty() ? "" : "; ") + FormatList(config->at(0));
+      if (const std::optional<FormatChoice> format =
+              libcamera_stream::ChooseFormat(LinearFourccs(config->at(0)))) {
+        candidates.push_back({role, std::move(config), *format});
       }
     }
-    if (!best) {
+    if (candidates.empty()) {
       Fail(HardwareError::Kind::kInvalidArgument,
            Name() + " offers no 8-bit grey, YUV420 or 8-bit raw format (offers: " +
                (offered.empty() ? "nothing" : offered) + ")");
     }
-    lc::StreamConfiguration& stream = best->at(0);
-    const lc::PixelFormat wanted(best_format->fourcc);
+    std::stable_sort(
+        candidates.begin(), candidates.end(),
+        [](const Candidate& a, const Candidate& b) { return a.format.layout < b.format.layout; });
+
     const lc::Size wanted_size(static_cast<unsigned>(config_.width),
                                static_cast<unsigned>(config_.height));
-    stream.pixelFormat = wanted;
-    stream.size = wanted_size;
-    // stream.bufferCount stays the pipeline's own: frames are copied out at once, so
-    // libcamera needs only enough buffers to keep the sensor fed, while the consumer's
-    // slack is the hal pool (CameraConfig::buffer_count).
-    if (best->validate() == lc::CameraConfiguration::Invalid) {
-      Fail(HardwareError::Kind::kInvalidArgument,
-           Name() + ": cannot configure " + wanted.toString() + " " + wanted_size.toString());
-    }
-    if (stream.pixelFormat != wanted || stream.size != wanted_size) {
-      std::string sizes;
-      for (const lc::Size& size : stream.formats().sizes(wanted)) {
-        sizes += (sizes.empty() ? "" : " ") + size.toString();
+    std::string refusals;
+    for (Candidate& candidate : candidates) {
+      lc::StreamConfiguration& stream = candidate.config->at(0);
+      const lc::PixelFormat wanted(candidate.format.fourcc);
+      stream.pixelFormat = wanted;
+      stream.size = wanted_size;
+      // stream.bufferCount stays the pipeline's own: frames are copied out at once, so
+      // libcamera needs only enough buffers to keep the sensor fed, while the consumer's
+      // slack is the hal pool (CameraConfig::buffer_count).
+      const std::string tried =
+          std::string(candidate.role == lc::StreamRole::Raw ? "raw" : "viewfinder") + " " +
+          wanted.toString() + " " + wanted_size.toString();
+      if (candidate.config->validate() == lc::CameraConfiguration::Invalid) {
+        refusals += (refusals.empty() ? "" : "; ") + tried + ": invalid";
+        continue;
       }
-      Fail(HardwareError::Kind::kInvalidArgument,
-           "camera.width/height: " + Name() + " cannot deliver " + wanted.toString() + " " +
-               wanted_size.toString() + " (it would give " + stream.toString() +
-               "; sizes: " + (sizes.empty() ? "none listed" : sizes) + ")");
+      if (stream.pixelFormat != wanted || stream.size != wanted_size) {
+        std::string sizes;
+        for (const lc::Size& size : stream.formats().sizes(wanted)) {
+          sizes += (sizes.empty() ? "" : " ") + size.toString();
+        }
+        refusals += (refusals.empty() ? "" : "; ") + tried + ": would give " + stream.toString() +
+                    " (sizes: " + (sizes.empty() ? "none listed" : sizes) + ")";
+        continue;
+      }
+      if (const int ret = camera_->configure(candidate.config.get()); ret < 0) {
+        Fail(HardwareError::Kind::kIo,
+             Name() + ": configure " + tried + " failed: " + ErrnoText(ret));
+      }
+      stream_ = stream.stream();
+      stride_ = stream.stride;
+      return;
     }
-    if (const int ret = camera_->configure(best.get()); ret < 0) {
-      Fail(HardwareError::Kind::kIo, Name() + ": configure failed: " + ErrnoText(ret));
-    }
-    stream_ = stream.stream();
-    stride_ = stream.stride;
-    stream_config_ = std::move(best);
+    Fail(HardwareError::Kind::kInvalidArgument, "camera.width/height: " + Name() +
+                                                    " cannot deliver " + wanted_size.toString() +
+                                                    " (" + refusals + ")");
   }
 
   // Allocates the stream's buffers, maps the plane each frame is read from, and makes
@@ -320,7 +336,6 @@ class LibcameraCamera final : public Camera {
     if (allocator_ && stream_) allocator_->free(stream_);
     allocator_.reset();
     stream_ = nullptr;
-    stream_config_.reset();
     on_frame_ = nullptr;
     on_end_ = nullptr;
   }
@@ -431,7 +446,6 @@ class LibcameraCamera final : public Camera {
   bool configured_ = false;
 
   // From Start() to Stop().
-  std::unique_ptr<lc::CameraConfiguration> stream_config_;
   lc::Stream* stream_ = nullptr;
   size_t stride_ = 0;
   std::unique_ptr<lc::FrameBufferAllocator> allocator_;
