@@ -21,15 +21,6 @@ std::optional<FormatChoice> ChooseFormat(const std::vector<uint32_t>& supported)
   return std::nullopt;
 }
 
-std::string FourccName(uint32_t fourcc) {
-  std::string name(4, ' ');
-  for (int i = 0; i < 4; ++i) {
-    const char c = static_cast<char>((fourcc >> (8 * i)) & 0xFF);
-    name[static_cast<size_t>(i)] = (c >= 0x20 && c < 0x7F) ? c : '?';
-  }
-  return name;
-}
-
 SensorControls SensorControlsFor(const CameraConfig& config) {
   config.Validate();
   if (config.fps <= 0.0) {

@@ -48,8 +48,6 @@ struct FormatChoice {
 // The preferred format among those a stream supports (linear fourccs only): R8, then
 // YUV420, then 8-bit raw Bayer; nullopt when none is offered.
 std::optional<FormatChoice> ChooseFormat(const std::vector<uint32_t>& supported);
-// "R8  ", "YU12", ... for messages; non-printable bytes as '?'.
-std::string FourccName(uint32_t fourcc);
 
 // The controls a capture starts with: auto exposure off, exposure and gain fixed, the
 // frame duration pinned (min = max) to the configured rate.

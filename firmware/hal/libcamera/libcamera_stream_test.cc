@@ -41,9 +41,6 @@ TEST(ChooseFormat, FourccsMatchLibcamerasCodes) {
   EXPECT_EQ(kFourccR8, 0x20203852U);
   EXPECT_EQ(kFourccYuv420, 0x32315559U);
   EXPECT_EQ(kFourccSbggr8, 0x31384142U);
-  EXPECT_EQ(FourccName(kFourccYuv420), "YU12");
-  EXPECT_EQ(FourccName(kFourccR8), "R8  ");
-  EXPECT_EQ(FourccName(0x00FF4142U), "BA??");
 }
 
 TEST(SensorControlsFor, FixesExposureGainAndFrameDuration) {
