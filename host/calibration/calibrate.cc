@@ -66,6 +66,9 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
   data.height = image.gray.rows;
   data.report.name = image.name;
   const auto detections = DetectTargetMarkers(image.gray, DetectorOptions(target));
+  std::vector<uint8_t> levels(image.gray.begin<uint8_t>(), image.gray.end<uint8_t>());
+  std::nth_element(levels.begin(), levels.begin() + levels.size() * 99 / 100, levels.end());
+  data.report.white_dn = levels[levels.size() * 99 / 100];
   for (int v = 0; v < kViews; ++v) {
     ViewReport& report = data.report.views[v];
     report.view = static_cast<ViewId>(v);
@@ -96,6 +99,14 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
 bool CheckDetections(const CameraData& data, const CalibrationLimits& limits,
                      CalibrationResult& result) {
   bool solvable = true;
+  const bool bright = data.report.white_dn >= limits.min_white_dn;
+  result.checks.push_back({data.name + ".white_dn", data.report.white_dn,
+                           ">= " + Format("%g", limits.min_white_dn), bright});
+  if (!bright) {
+    result.failures.push_back("camera " + data.name + ": the image is dark (brightest 1% at " +
+                              Format("%.0f", data.report.white_dn) +
+                              " DN); add light or raise the exposure or gain");
+  }
   for (const ViewReport& v : data.report.views) {
     const std::string where = "camera " + data.name + ", " + ViewName(v.view) + " view";
     const int found = static_cast<int>(v.found.size());
@@ -521,14 +532,16 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
   if (r.Has("limits")) {
     const JsonReader l = r.Object("limits");
     l.AllowOnly({"max_rms_px", "min_markers_per_view", "min_contrast_dn", "max_edge_sigma_px",
-                 "min_mirror_angle_deg", "max_mirror_angle_deg", "max_mirror_tilt_deg",
-                 "max_corner_offset_mm", "max_yaw_deg", "verify_max_rms_px"});
+                 "min_white_dn", "min_mirror_angle_deg", "max_mirror_angle_deg",
+                 "max_mirror_tilt_deg", "max_corner_offset_mm", "max_yaw_deg",
+                 "verify_max_rms_px"});
     CalibrationLimits& x = s.limits;
     x.max_rms_px = l.Number("max_rms_px", x.max_rms_px, 0.001, 100.0);
     x.min_markers_per_view = l.Integer("min_markers_per_view", x.min_markers_per_view, 4,
                                        virtual_cabinet::kTargetMarkersPerPanel);
     x.min_contrast_dn = l.Number("min_contrast_dn", x.min_contrast_dn, 0.0, 255.0);
     x.max_edge_sigma_px = l.Number("max_edge_sigma_px", x.max_edge_sigma_px, 0.1, 100.0);
+    x.min_white_dn = l.Number("min_white_dn", x.min_white_dn, 0.0, 255.0);
     x.min_mirror_angle_deg = l.Number("min_mirror_angle_deg", x.min_mirror_angle_deg, 1.0, 179.0);
     x.max_mirror_angle_deg =
         l.Number("max_mirror_angle_deg", x.max_mirror_angle_deg, x.min_mirror_angle_deg, 179.0);
@@ -691,7 +704,7 @@ nlohmann::json CalibrationResult::ReportJson() const {
                        {"rms_after_px", v.rms_after_px},
                        {"max_after_px", v.max_after_px}});
     }
-    cameras_json.push_back({{"name", c.name}, {"views", views}});
+    cameras_json.push_back({{"name", c.name}, {"white_dn", c.white_dn}, {"views", views}});
   }
   nlohmann::json checks_json = nlohmann::json::array();
   for (const Check& c : checks) {

@@ -25,7 +25,8 @@ struct CalibrationLimits {
   double max_rms_px = 0.25;             // per view, after refinement
   int min_markers_per_view = 4;         // whole markers; a mirror's edge cuts some off
   double min_contrast_dn = 40.0;        // black border to white surround
-  double max_edge_sigma_px = 2.0;       // blur of the marker edges
+  double max_edge_sigma_px = 1.2;       // blur of the marker edges (sharp: 0.8)
+  double min_white_dn = 60.0;           // brightest percent of the image
   double min_mirror_angle_deg = 115.0;  // opening angle between the mirrors
   double max_mirror_angle_deg = 125.0;
   double max_mirror_tilt_deg = 1.0;    // mirrors stand vertical
@@ -67,6 +68,7 @@ struct ViewReport {
 
 struct CameraReport {
   std::string name;
+  double white_dn = 0.0;  // the level of the brightest percent of the image
   std::array<ViewReport, kViews> views;
 };
 

@@ -138,5 +138,139 @@ TEST(CalibrateTest, FlatMirrorsBothCamerasMatchTruth) {
   EXPECT_GT(agree, 0.98 * total);
 }
 
+// A non-flat mirror leaves residuals no plane can explain, on its side only.
+TEST(CalibrateTest, BumpedMirrorShowsOnItsSide) {
+  const Scene scene = MakeScene({{"mirrors", {{"left_bump_mm", 2.0}}}});
+  const CalibrationResult result = Calibrate(Render(scene), Settings());
+  Print(result);
+  ASSERT_TRUE(result.calibration);
+  for (int c = 0; c < 2; ++c) {
+    const double left = ViewOf(result, c, ViewId::kLeft).rms_after_px;
+    const double right = ViewOf(result, c, ViewId::kRight).rms_after_px;
+    EXPECT_GT(left, 2.0 * right) << "camera " << c;
+  }
+  double left = 0.0, right = 0.0;
+  for (const auto& v : result.calibration->residuals.views) {
+    if (v.view == "left") left = std::max(left, v.rms_px);
+    if (v.view == "right") right = std::max(right, v.rms_px);
+  }
+  EXPECT_GT(left, right);  // and calibration.json's residuals say so too
+}
+
+const std::vector<CameraImage>& UpperImage() {
+  static const std::vector<CameraImage> images = Render(MakeScene(kUpperOnly));
+  return images;
+}
+
+bool Mentions(const CalibrationResult& r, const std::string& text) {
+  for (const auto& f : r.failures) {
+    if (f.find(text) != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST(CalibrateTest, UpperCameraAlonePasses) {
+  const CalibrationResult result = Calibrate(UpperImage(), Settings());
+  Print(result);
+  EXPECT_TRUE(result.ok);
+  ASSERT_TRUE(result.calibration);
+  EXPECT_EQ(result.calibration->cameras.size(), 1u);
+}
+
+TEST(CalibrateTest, HiddenMirrorMarkersFailAndSayWhere) {
+  std::vector<CameraImage> images = {{"upper", UpperImage()[0].gray.clone()}};
+  // Something in front of the left mirror hides the left panel's image.
+  const Scene scene = MakeScene(kUpperOnly);
+  std::vector<cv::Point2f> corners;
+  for (const auto& m : scene.target->markers()) {
+    if (m.panel != 1) continue;
+    for (const auto& p : m.corners) {
+      const auto px = scene.cameras[0].camera.ProjectViaMirror(p, scene.mirrors[0].plane);
+      ASSERT_TRUE(px);
+      corners.emplace_back(px->x(), px->y());
+    }
+  }
+  std::vector<cv::Point2f> hull;
+  cv::convexHull(corners, hull);
+  std::vector<cv::Point> polygon(hull.begin(), hull.end());
+  cv::fillConvexPoly(images[0].gray, polygon, cv::Scalar(128));
+  const CalibrationResult result = Calibrate(images, Settings());
+  Print(result);
+  EXPECT_FALSE(result.ok);
+  EXPECT_FALSE(result.calibration);
+  EXPECT_TRUE(Mentions(result, "camera upper, left view: only 0 of 16 markers found"));
+  EXPECT_FALSE(Mentions(result, "right view"));
+  EXPECT_FALSE(Mentions(result, "center view"));
+}
+
+TEST(CalibrateTest, DarkImageFails) {
+  nlohmann::json patch = kUpperOnly;
+  patch["sensor"] = {{"ambient_dn", 12}};
+  const CalibrationResult result = Calibrate(Render(MakeScene(patch)), Settings());
+  Print(result);
+  EXPECT_FALSE(result.ok);
+  EXPECT_TRUE(Mentions(result, "camera upper: the image is dark"));
+}
+
+TEST(CalibrateTest, BlurredImageFails) {
+  nlohmann::json patch = kUpperOnly;
+  patch["sensor"] = {{"blur_px", 2.5}};
+  const CalibrationResult result = Calibrate(Render(MakeScene(patch)), Settings());
+  Print(result);
+  EXPECT_FALSE(result.ok);
+  EXPECT_TRUE(Mentions(result, "marker edges are blurred"));
+}
+
+TEST(CalibrateTest, TargetOutOfPlaceFails) {
+  for (const nlohmann::json& target :
+       {nlohmann::json{{"center_mm", {40, 0}}}, nlohmann::json{{"yaw_deg", 3}}}) {
+    nlohmann::json patch = kUpperOnly;
+    patch["target"] = target;
+    const CalibrationResult result = Calibrate(Render(MakeScene(patch)), Settings());
+    Print(result);
+    EXPECT_FALSE(result.ok) << target;
+    // Shifted, it may also hide a panel from its mirror; either way the advice is to put
+    // the target back on its mark.
+    EXPECT_TRUE(Mentions(result, "the target is out of place") ||
+                Mentions(result, "target at its floor mark"))
+        << target;
+  }
+}
+
+TEST(CalibrateTest, VerifyFlagsARotatedMirror) {
+  const CalibrationResult calibrated = Calibrate(UpperImage(), Settings());
+  ASSERT_TRUE(calibrated.ok);
+  // The same cabinet, a new image: passes.
+  const CalibrationResult same =
+      Verify(Render(MakeScene(kUpperOnly), /*seed=*/99), Settings(), *calibrated.calibration);
+  Print(same);
+  EXPECT_TRUE(same.ok);
+  // Each mirror turned by 0.5° about the corner line: both mirror views flagged, not the
+  // centre.
+  nlohmann::json patch = kUpperOnly;
+  patch["mirrors"] = {{"angle_deg", 121.0}};
+  const CalibrationResult changed =
+      Verify(Render(MakeScene(patch)), Settings(), *calibrated.calibration);
+  Print(changed);
+  EXPECT_FALSE(changed.ok);
+  EXPECT_TRUE(Mentions(changed, "camera upper, left view: markers lie"));
+  EXPECT_TRUE(Mentions(changed, "camera upper, right view: markers lie"));
+  EXPECT_FALSE(Mentions(changed, "center view"));
+  EXPECT_TRUE(Mentions(changed, "recalibrate"));
+}
+
+TEST(CalibrateTest, SettingsFromBoardNameTheKey) {
+  nlohmann::json board = JsonReader::ParseFile(kSource + "/boards/virtual/board.json");
+  board["calibration"] = {{"limits", {{"max_rms_px", -1}}}};
+  try {
+    CalibrationSettings::FromBoard(board, "board.json");
+    FAIL() << "accepted a negative limit";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "board.json: calibration.limits.max_rms_px: must be in [0.001, 100], got -1");
+  }
+  EXPECT_EQ(Settings().camera_names, (std::vector<std::string>{"upper", "lower"}));
+}
+
 }  // namespace
 }  // namespace mirrorscan::calibration
