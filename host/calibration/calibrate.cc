@@ -735,7 +735,9 @@ cv::Mat DrawReport(const CameraImage& image, const CameraReport& report) {
       const cv::Point2d seen(v.observed[i].x(), v.observed[i].y());
       cv::circle(out, seen, 3, green, 1, cv::LINE_AA);
       if (i < v.reprojected.size()) {
-        const Eigen::Vector2d tip = v.observed[i] + 10.0 * (v.reprojected[i] - v.observed[i]);
+        const cv::Point2d projected(v.reprojected[i].x(), v.reprojected[i].y());
+        cv::drawMarker(out, projected, red, cv::MARKER_CROSS, 6, 1, cv::LINE_AA);
+        const Eigen::Vector2d tip = v.observed[i] + 50.0 * (v.reprojected[i] - v.observed[i]);
         cv::line(out, seen, cv::Point2d(tip.x(), tip.y()), red, 1, cv::LINE_AA);
       }
     }

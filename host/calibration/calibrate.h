@@ -98,8 +98,8 @@ CalibrationResult Calibrate(const std::vector<CameraImage>& images,
 CalibrationResult Verify(const std::vector<CameraImage>& images,
                          const CalibrationSettings& settings, const Calibration& existing);
 
-// The image with found corners (green) and reprojected ones (red, offsets magnified
-// tenfold) and each view's RMS.
+// The image with found corners (green circles), reprojected ones (red crosses), each
+// offset magnified 50 times (red line) and each view's RMS.
 cv::Mat DrawReport(const CameraImage& image, const CameraReport& report);
 
 }  // namespace mirrorscan::calibration
