@@ -26,10 +26,19 @@ std::string Format(const char* format, double value) {
 }
 
 // Every corner of one view: where the target has it and where the image shows it.
+// A point found on a marker's edge: the edge runs from a to b on the target, the point
+// lies at about a + t (b - a).
+struct EdgePoint {
+  Eigen::Vector3d a, b;
+  double t = 0.0;
+  Eigen::Vector2d pixel;
+};
+
 struct ViewPoints {
   std::vector<Eigen::Vector3d> in_world;
   std::vector<Eigen::Vector2d> in_panel;  // (right, up) in mm on its panel
   std::vector<Eigen::Vector2d> pixels;
+  std::vector<EdgePoint> edges;
 };
 
 struct CameraData {
@@ -85,6 +94,11 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
         points.in_world.push_back(truth.corners[c]);
         points.in_panel.push_back(PanelCoordinates(target.panels()[v], truth.corners[c]));
         points.pixels.push_back(m.corners[c]);
+        const Eigen::Vector2d from = m.corners[c], to = m.corners[(c + 1) % 4];
+        for (const Eigen::Vector2d& p : m.edge_points[c]) {
+          points.edges.push_back({truth.corners[c], truth.corners[(c + 1) % 4],
+                                  (p - from).dot(to - from) / (to - from).squaredNorm(), p});
+        }
       }
     }
     for (int i = 0; i < virtual_cabinet::kTargetMarkersPerPanel; ++i) {
@@ -299,6 +313,47 @@ struct MirrorResidual {
   }
 };
 
+// Distance of an edge point from the projected edge, along the edge's image normal: the
+// projected point at the same place along the edge slides along it freely.
+template <typename T>
+T EdgeDistance(const T* intrinsics, const T* rotation, const T* translation,
+               const Eigen::Matrix<T, 3, 1>& a, const Eigen::Matrix<T, 3, 1>& b, double t,
+               const Eigen::Vector2d& pixel) {
+  T pa[2], pb[2], pt[2];
+  ProjectPoint(intrinsics, rotation, translation, a, pa);
+  ProjectPoint(intrinsics, rotation, translation, b, pb);
+  ProjectPoint(intrinsics, rotation, translation, (a + T(t) * (b - a)).eval(), pt);
+  const T dx = pb[0] - pa[0], dy = pb[1] - pa[1];
+  const T length = ceres::sqrt(dx * dx + dy * dy);
+  return (-dy * (pt[0] - T(pixel.x())) + dx * (pt[1] - T(pixel.y()))) / length;
+}
+
+struct DirectEdgeResidual {
+  EdgePoint edge;
+  template <typename T>
+  bool operator()(const T* intrinsics, const T* rotation, const T* translation, T* residual) const {
+    residual[0] = EdgeDistance(intrinsics, rotation, translation, edge.a.cast<T>().eval(),
+                               edge.b.cast<T>().eval(), edge.t, edge.pixel);
+    return true;
+  }
+};
+
+struct MirrorEdgeResidual {
+  EdgePoint edge;
+  template <typename T>
+  bool operator()(const T* intrinsics, const T* rotation, const T* translation, const T* normal,
+                  const T* offset, T* residual) const {
+    const Eigen::Map<const Eigen::Matrix<T, 3, 1>> n(normal);
+    auto reflect = [&](const Eigen::Vector3d& point) {
+      const Eigen::Matrix<T, 3, 1> p = point.cast<T>();
+      return (p - T(2) * (n.dot(p) + offset[0]) * n).eval();
+    };
+    residual[0] = EdgeDistance(intrinsics, rotation, translation, reflect(edge.a), reflect(edge.b),
+                               edge.t, edge.pixel);
+    return true;
+  }
+};
+
 struct CameraParameters {
   std::array<double, 9> intrinsics;
   std::array<double, 4> rotation;  // Eigen order x, y, z, w
@@ -341,6 +396,23 @@ void Refine(const std::vector<CameraData>& data, std::vector<CameraParameters>& 
     CameraParameters& p = cameras[c];
     for (int v = 0; v < kViews; ++v) {
       const ViewPoints& points = data[c].views[v];
+      for (const EdgePoint& edge : points.edges) {
+        auto* loss = new ceres::HuberLoss(1.0);
+        if (v == 0) {
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<DirectEdgeResidual, 1, 9, 4, 3>(
+                                       new DirectEdgeResidual{edge}),
+                                   loss, p.intrinsics.data(), p.rotation.data(),
+                                   p.translation.data());
+        } else {
+          MirrorParameters& m = mirrors[v - 1];
+          problem.AddResidualBlock(
+              new ceres::AutoDiffCostFunction<MirrorEdgeResidual, 1, 9, 4, 3, 3, 1>(
+                  new MirrorEdgeResidual{edge}),
+              loss, p.intrinsics.data(), p.rotation.data(), p.translation.data(), m.normal.data(),
+              &m.offset);
+        }
+      }
+      // The corners too: they tie the edges' ends together.
       for (size_t i = 0; i < points.pixels.size(); ++i) {
         auto* loss = new ceres::HuberLoss(1.0);
         if (v == 0) {

@@ -47,6 +47,7 @@ std::optional<Eigen::Vector2d> Intersect(const Line& a, const Line& b) {
 
 struct EdgeFit {
   Line line;
+  std::vector<Eigen::Vector2d> points;
   double contrast = 0.0, sigma = 0.0;
 };
 
@@ -104,6 +105,7 @@ std::optional<EdgeFit> FitEdge(const cv::Mat& gray, const Eigen::Vector2d& a,
   // Differences of pixel samples widen a Gaussian edge by about one pixel's box (1/12)
   // on each side; what is left is the blur.
   fit.sigma = std::sqrt(std::max(0.0, sigma2_sum / points.size() - 1.0 / 6.0));
+  fit.points = std::move(points);
   return fit;
 }
 
@@ -129,6 +131,7 @@ std::optional<DetectedMarker> RefineMarkerCorners(const cv::Mat& gray,
       const auto corner = Intersect(edges[(c + 3) % 4].line, edges[c].line);
       if (!corner || (*corner - refined.corners[c]).norm() > 3.0) return std::nullopt;
       next.corners[c] = *corner;
+      next.edge_points[c] = edges[c].points;
       contrast += 0.25 * edges[c].contrast;
       sigma += 0.25 * edges[c].sigma;
     }

@@ -24,6 +24,10 @@ struct DetectedMarker {
   std::array<Eigen::Vector2d, 4> corners;
   double contrast_dn = 0.0;    // mean step from black border to white surround
   double edge_sigma_px = 0.0;  // mean Gaussian width of the border edges (blur)
+  // Sub-pixel points on edge e (from corner e to corner e + 1), away from the corners;
+  // the calibration fits the projected edges to them, which lens distortion's bending of
+  // the edges does not bias as it does the straight-line corners.
+  std::array<std::vector<Eigen::Vector2d>, 4> edge_points;
 };
 
 struct ViewDetections {
