@@ -7,7 +7,6 @@
 #include <sstream>
 
 #include <ceres/ceres.h>
-#include <ceres/rotation.h>
 #include <ceres/sphere_manifold.h>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/eigen.hpp>
@@ -25,7 +24,6 @@ std::string Format(const char* format, double value) {
   return text;
 }
 
-// Every corner of one view: where the target has it and where the image shows it.
 // A point found on a marker's edge: the edge runs from a to b on the target, the point
 // lies at about a + t (b - a).
 struct EdgePoint {
@@ -34,6 +32,7 @@ struct EdgePoint {
   Eigen::Vector2d pixel;
 };
 
+// Every corner of one view: where the target has it and where the image shows it.
 struct ViewPoints {
   std::vector<Eigen::Vector3d> in_world;
   std::vector<Eigen::Vector2d> in_panel;  // (right, up) in mm on its panel
@@ -389,7 +388,8 @@ struct MirrorParameters {
   double offset = 0.0;
 };
 
-void Refine(const std::vector<CameraData>& data, std::vector<CameraParameters>& cameras,
+// False when the solver gives up with nothing usable.
+bool Refine(const std::vector<CameraData>& data, std::vector<CameraParameters>& cameras,
             std::array<MirrorParameters, 2>& mirrors) {
   ceres::Problem problem;
   for (size_t c = 0; c < data.size(); ++c) {
@@ -441,6 +441,7 @@ void Refine(const std::vector<CameraData>& data, std::vector<CameraParameters>& 
   options.parameter_tolerance = 1e-14;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
+  return summary.IsSolutionUsable();
 }
 
 // ---- Residuals, checks, output ----
@@ -677,7 +678,11 @@ CalibrationResult Calibrate(const std::vector<CameraImage>& images,
   }
 
   // Step 3.
-  Refine(data, cameras, mirrors);
+  if (!Refine(data, cameras, mirrors)) {
+    result.failures.push_back(
+        "the joint refinement found no solution; check the report image for misread markers");
+    return result;
+  }
   const std::array<Plane, 2> after = planes();
 
   Calibration calibration;
