@@ -149,8 +149,8 @@ ServiceConfig ParseService(const JsonReader& service) {
 BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& file) {
   if (!json.is_object()) throw ConfigError(file + ": expected a JSON object");
   const JsonReader r(json, file);
-  r.AllowOnly(
-      {"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store", "service"});
+  r.AllowOnly({"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store",
+               "service", "calibration"});  // "calibration" is the host's (host/calibration)
   BoardConfig c;
   c.board = NonEmptyString(r, "board");
   c.description = r.String("description");
