@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include "host/cli/calibrate_intrinsics_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
@@ -11,6 +12,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   mirrorscan::cli::AddSimCommands(app);
   mirrorscan::cli::AddPeaksCommand(app);
+  mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
