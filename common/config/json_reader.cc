@@ -27,6 +27,9 @@ nlohmann::json JsonReader::ParseText(const std::string& text, const std::string&
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     throw ConfigError(file + ": not valid JSON at byte " + std::to_string(e.byte));
+  } catch (const nlohmann::json::exception&) {
+    // A number beyond double's range is out_of_range, not a parse_error.
+    throw ConfigError(file + ": not valid JSON (a number out of range)");
   }
 }
 
