@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "host/cli/calibrate_intrinsics_command.h"
+#include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
@@ -13,6 +14,7 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddSimCommands(app);
   mirrorscan::cli::AddPeaksCommand(app);
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
+  mirrorscan::cli::AddCalibrateLasersCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
