@@ -67,12 +67,12 @@ std::vector<PanelPoint> CollectPanelPoints(const std::vector<FrameRecord>& frame
 
 struct PanelLines {
   double speed = 0.0;
-  std::vector<std::pair<double, int>> intercepts;  // (height at t = 0, laser)
+  std::vector<std::pair<double, int>> intercepts;  // (height at t = 0, laser), ascending
 };
 
 // The laser lines of one panel in the (time, height) plane, Hough-style: the slope whose
-// intercepts z − v·t pile up sharpest, then the intercept histogram's strongest peaks,
-// numbered from the lowest by the nominal spacing.
+// intercepts z − v·t pile up sharpest, then the intercept histogram's strongest peaks
+// (lasers numbered later, across panels).
 PanelLines FindPanelLines(const std::vector<Eigen::Vector2d>& time_height,
                           const LaserCabinet& cabinet, double window_mm) {
   double t_min = std::numeric_limits<double>::infinity(), t_max = -t_min;
@@ -150,11 +150,7 @@ PanelLines FindPanelLines(const std::vector<Eigen::Vector2d>& time_height,
       windowed[j] = 0;
   }
   std::sort(found.begin(), found.end());
-  for (double b : found) {
-    const int laser =
-        static_cast<int>(std::lround((b - found.front()) / cabinet.nominal_spacing_mm));
-    lines.intercepts.emplace_back(b, laser);
-  }
+  for (double b : found) lines.intercepts.emplace_back(b, -1);
   return lines;
 }
 

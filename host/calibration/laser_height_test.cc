@@ -238,6 +238,17 @@ TEST(LaserHeight, DisagreeingReadbackWarns) {
   EXPECT_NEAR(offset.readback->offset_mm, 25.0, 0.1);
 }
 
+TEST(LaserHeight, SpeedFoundWithoutANominalOne) {
+  const Sweep& sweep = LevelSweep();
+  LaserCabinet cabinet = CabinetOf(sweep);
+  const LaserHeightResult known = EstimateLaserHeights(sweep.frames, cabinet);
+  cabinet.nominal_speed_mm_s = 0;  // searched over (0, 1000] mm/s
+  const LaserHeightResult searched = EstimateLaserHeights(sweep.frames, cabinet);
+  EXPECT_DOUBLE_EQ(searched.fit.speed_mm_s, known.fit.speed_mm_s);
+  EXPECT_EQ(searched.inliers, known.inliers);
+  EXPECT_LT(CompareWithTruth(searched, sweep).max, 0.1);
+}
+
 TEST(LaserHeight, TooLittleOnThePanelsIsAnError) {
   const Sweep& sweep = LevelSweep();
   const LaserCabinet cabinet = CabinetOf(sweep);
