@@ -138,7 +138,9 @@ PanelLines FindPanelLines(const std::vector<Eigen::Vector2d>& time_height,
   for (int k = 0; k < cabinet.laser_count; ++k) {
     const int peak =
         static_cast<int>(std::max_element(windowed.begin(), windowed.end()) - windowed.begin());
-    if (windowed[peak] <= 0 || windowed[peak] < 0.05 * strongest) break;
+    // Stripes on a subject in front of a panel pile up too, but far less than a laser
+    // line that crosses the panel for much of the sweep.
+    if (windowed[peak] <= 0 || windowed[peak] < 0.25 * strongest) break;
     strongest = std::max(strongest, windowed[peak]);
     double sum = 0, weight = 0;
     for (int j = std::max(0, peak - half); j <= std::min(n - 1, peak + half); ++j) {
@@ -241,10 +243,10 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
   const int lasers = cabinet.laser_count;
   auto time_of = [&](const PanelPoint& p) { return fit.TimeS(frames[p.frame].timestamp_ns); };
 
-  // 1. Lines per panel, numbered consistently: a panel's lasers are counted from the
-  // lowest line of the panel that sees the most lines.
+  // 1. Lines per panel, numbered consistently across panels: in nominal spacings from the
+  // lowest line any panel shows, which is taken to be laser 0.
   std::vector<PanelLines> panel_lines(cabinet.panels.size());
-  int reference = -1;
+  double lowest = std::numeric_limits<double>::infinity();
   for (size_t p = 0; p < cabinet.panels.size(); ++p) {
     std::vector<Eigen::Vector2d> time_height;
     for (const PanelPoint& point : points)
@@ -257,16 +259,14 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
       continue;
     }
     panel_lines[p] = FindPanelLines(time_height, cabinet, 5.0);
-    if (reference < 0 ||
-        panel_lines[p].intercepts.size() > panel_lines[reference].intercepts.size())
-      reference = static_cast<int>(p);
+    if (!panel_lines[p].intercepts.empty())
+      lowest = std::min(lowest, panel_lines[p].intercepts.front().first);
   }
-  if (reference < 0) throw LaserHeightError("no panel has enough laser points to fit a line");
-  const double reference_lowest = panel_lines[reference].intercepts.front().first;
+  if (!std::isfinite(lowest))
+    throw LaserHeightError("no panel has enough laser points to fit a line");
   for (PanelLines& lines : panel_lines) {
     for (auto& [intercept, laser] : lines.intercepts)
-      laser = static_cast<int>(
-          std::lround((intercept - reference_lowest) / cabinet.nominal_spacing_mm));
+      laser = static_cast<int>(std::lround((intercept - lowest) / cabinet.nominal_spacing_mm));
   }
   for (size_t p = 0; p < cabinet.panels.size(); ++p) {
     const PanelLines& lines = panel_lines[p];
@@ -276,13 +276,12 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
                                        cabinet.panels[p].name.c_str(), lines.intercepts.size(),
                                        lasers));
     for (const auto& [intercept, laser] : lines.intercepts) {
-      if (laser < 0 || laser >= lasers)
-        throw LaserHeightError(
-            Format("%s: a laser line at %.1f mm (t = 0) is %.0f spacings from the lowest line: "
-                   "laser spacing %.1f mm or laser count %d wrong?",
-                   cabinet.panels[p].name.c_str(), intercept,
-                   (intercept - reference_lowest) / cabinet.nominal_spacing_mm,
-                   cabinet.nominal_spacing_mm, lasers));
+      if (laser >= lasers)
+        throw LaserHeightError(Format(
+            "%s: a laser line at %.1f mm (t = 0) is %.0f spacings from the lowest line: "
+            "laser spacing %.1f mm or laser count %d wrong?",
+            cabinet.panels[p].name.c_str(), intercept,
+            (intercept - lowest) / cabinet.nominal_spacing_mm, cabinet.nominal_spacing_mm, lasers));
     }
   }
   for (PanelPoint& point : points) {
@@ -364,7 +363,11 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
           std::abs((x.z() + a * x.x() + b * x.y() - h0 - v * time_of(p) - c[p.laser]) / scale));
     }
     const double sigma = 1.4826 * Median(inlier_abs);
-    const double new_gate = std::clamp(5.0 * sigma, options.min_gate_mm, options.gate_mm);
+    // The first pass keeps the wide gate, so a laser no panel showed as a line (placed at
+    // the nominal spacing) can gather its points before the gate closes in.
+    const double new_gate = iteration == 0
+                                ? options.gate_mm
+                                : std::clamp(5.0 * sigma, options.min_gate_mm, options.gate_mm);
     bool changed = false;
     for (PanelPoint& p : points) {
       const Eigen::Vector3d& x = p.point_in_world;
