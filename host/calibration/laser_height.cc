@@ -483,6 +483,15 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
           check.frames_off, check.frames, options.readback_tolerance_mm, check.max_error_mm,
           check.worst_frame, check.offset_mm, options.readback_offset_mm, check.speed_mm_s,
           fit.speed_mm_s));
+      // A whole number of spacings: most likely laser 0 never reached a panel, so the
+      // lowest line seen was numbered 0.
+      const double spacings =
+          (check.offset_mm - options.readback_offset_mm) / cabinet.nominal_spacing_mm;
+      if (lasers > 1 && std::abs(spacings) > 0.5 &&
+          std::abs(spacings - std::round(spacings)) < 0.05) {
+        result.warnings.back() += Format(
+            "; that is %.0f laser spacing(s): was the lowest laser never on the panels?", spacings);
+      }
     }
     result.readback = check;
   }

@@ -281,6 +281,13 @@ TEST(LaserHeight, DisagreeingReadbackWarns) {
   LaserHeightOptions options;
   EXPECT_EQ(EstimateLaserHeights(frames, CabinetOf(sweep), options).warnings.size(), 1u);
   options.readback_offset_mm = 25.0;
+  // Off by one spacing, as when laser 0 is never seen and laser 1 is numbered 0.
+  options.readback_offset_mm = 25.0 + 200.0;
+  const LaserHeightResult shifted = EstimateLaserHeights(frames, CabinetOf(sweep), options);
+  ASSERT_EQ(shifted.warnings.size(), 1u);
+  EXPECT_NE(shifted.warnings[0].find("that is -1 laser spacing(s)"), std::string::npos)
+      << shifted.warnings[0];
+  options.readback_offset_mm = 25.0;
   const LaserHeightResult offset = EstimateLaserHeights(frames, CabinetOf(sweep), options);
   EXPECT_TRUE(offset.warnings.empty());
   EXPECT_NEAR(offset.readback->offset_mm, 25.0, 0.1);
