@@ -122,6 +122,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
     }
   }
   EXPECT_GT(lasers["residual_rms_mm"].get<double>(), 0.0);
+  EXPECT_LT(lasers["residual_max_mm"].get<double>(), 0.5);
   EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
   const nlohmann::json fitted = ReadJson(dir / "fitted.json");
   EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 150.0, 0.1);

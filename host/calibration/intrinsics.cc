@@ -21,25 +21,25 @@ constexpr size_t kMinCharucoCorners = 6;
 constexpr size_t kMinViews = 3;
 
 const std::vector<std::pair<std::string, cv::aruco::PREDEFINED_DICTIONARY_NAME>>& Dictionaries() {
-  using namespace cv::aruco;
-  static const std::vector<std::pair<std::string, PREDEFINED_DICTIONARY_NAME>> names = {
-      {"DICT_4X4_50", DICT_4X4_50},
-      {"DICT_4X4_100", DICT_4X4_100},
-      {"DICT_4X4_250", DICT_4X4_250},
-      {"DICT_4X4_1000", DICT_4X4_1000},
-      {"DICT_5X5_50", DICT_5X5_50},
-      {"DICT_5X5_100", DICT_5X5_100},
-      {"DICT_5X5_250", DICT_5X5_250},
-      {"DICT_5X5_1000", DICT_5X5_1000},
-      {"DICT_6X6_50", DICT_6X6_50},
-      {"DICT_6X6_100", DICT_6X6_100},
-      {"DICT_6X6_250", DICT_6X6_250},
-      {"DICT_6X6_1000", DICT_6X6_1000},
-      {"DICT_7X7_50", DICT_7X7_50},
-      {"DICT_7X7_100", DICT_7X7_100},
-      {"DICT_7X7_250", DICT_7X7_250},
-      {"DICT_7X7_1000", DICT_7X7_1000},
-      {"DICT_ARUCO_ORIGINAL", DICT_ARUCO_ORIGINAL}};
+  namespace aruco = cv::aruco;
+  static const std::vector<std::pair<std::string, aruco::PREDEFINED_DICTIONARY_NAME>> names = {
+      {"DICT_4X4_50", aruco::DICT_4X4_50},
+      {"DICT_4X4_100", aruco::DICT_4X4_100},
+      {"DICT_4X4_250", aruco::DICT_4X4_250},
+      {"DICT_4X4_1000", aruco::DICT_4X4_1000},
+      {"DICT_5X5_50", aruco::DICT_5X5_50},
+      {"DICT_5X5_100", aruco::DICT_5X5_100},
+      {"DICT_5X5_250", aruco::DICT_5X5_250},
+      {"DICT_5X5_1000", aruco::DICT_5X5_1000},
+      {"DICT_6X6_50", aruco::DICT_6X6_50},
+      {"DICT_6X6_100", aruco::DICT_6X6_100},
+      {"DICT_6X6_250", aruco::DICT_6X6_250},
+      {"DICT_6X6_1000", aruco::DICT_6X6_1000},
+      {"DICT_7X7_50", aruco::DICT_7X7_50},
+      {"DICT_7X7_100", aruco::DICT_7X7_100},
+      {"DICT_7X7_250", aruco::DICT_7X7_250},
+      {"DICT_7X7_1000", aruco::DICT_7X7_1000},
+      {"DICT_ARUCO_ORIGINAL", aruco::DICT_ARUCO_ORIGINAL}};
   return names;
 }
 

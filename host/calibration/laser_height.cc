@@ -385,7 +385,7 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
       changed |= best_laser != p.laser;
       p.laser = best_laser;
     }
-    const bool converged = !changed && std::abs(new_gate - gate) < 1e-3;
+    const bool converged = iteration > 0 && !changed && std::abs(new_gate - gate) < 1e-3;
     gate = new_gate;
     if (converged) break;
   }
