@@ -31,7 +31,8 @@ struct Sweep {
   std::vector<FrameRecord> frames;
 };
 
-Sweep RenderSweep(const nlohmann::json& scene_changes, int frame_step, int cameras) {
+// The mannequin scene with `scene_changes` merged in, and its true calibration.
+Sweep LoadScene(const nlohmann::json& scene_changes) {
   nlohmann::json scene_json = JsonReader::ParseFile(std::string(MIRRORSCAN_SOURCE_DIR) +
                                                     "/boards/virtual/scenes/mannequin.json");
   scene_json.merge_patch(scene_changes);
@@ -40,6 +41,11 @@ Sweep RenderSweep(const nlohmann::json& scene_changes, int frame_step, int camer
               {},
               {}};
   sweep.calibration = Calibration::Parse(sweep.scene.TrueCalibration(), "calibration.json");
+  return sweep;
+}
+
+Sweep RenderSweep(const nlohmann::json& scene_changes, int frame_step, int cameras) {
+  Sweep sweep = LoadScene(scene_changes);
   const Renderer renderer(sweep.scene);
   PeakExtractor extractor;
   for (int frame = 0; frame < sweep.scene.frames; frame += frame_step) {
@@ -320,11 +326,15 @@ TEST(LaserHeight, SpeedFoundWithoutANominalOne) {
 }
 
 TEST(LaserHeight, TooLittleOnThePanelsIsAnError) {
-  const Sweep& sweep = LevelSweep();
-  const LaserCabinet cabinet = CabinetOf(sweep);
+  const Sweep scene = LoadScene(nlohmann::json::object());
+  const LaserCabinet cabinet = CabinetOf(scene);
   EXPECT_THROW(EstimateLaserHeights({}, cabinet), LaserHeightError);
-  std::vector<FrameRecord> dark = sweep.frames;
-  for (FrameRecord& frame : dark) frame.lasers_on = false;
+  // Frames with the lasers off: their peaks are not laser lines.
+  std::vector<FrameRecord> dark(10);
+  for (size_t f = 0; f < dark.size(); ++f) {
+    dark[f].timestamp_ns = static_cast<int64_t>(f) * 33'333'333;
+    for (uint16_t u = 0; u < 1024; u += 4) dark[f].peaks.push_back({u, 300.f, 50.f, 2.f, 1.f});
+  }
   try {
     EstimateLaserHeights(dark, cabinet);
     FAIL();
@@ -332,24 +342,40 @@ TEST(LaserHeight, TooLittleOnThePanelsIsAnError) {
     EXPECT_NE(std::string(e.what()).find("only 0 peaks lie on the panels"), std::string::npos)
         << e.what();
   }
-  std::vector<FrameRecord> unknown_camera = {sweep.frames.front()};
+  std::vector<FrameRecord> unknown_camera = {dark.front()};
+  unknown_camera[0].lasers_on = true;
   unknown_camera[0].camera = 5;
-  EXPECT_THROW(EstimateLaserHeights(unknown_camera, cabinet), LaserHeightError);
+  try {
+    EstimateLaserHeights(unknown_camera, cabinet);
+    FAIL();
+  } catch (const LaserHeightError& e) {
+    EXPECT_EQ(std::string(e.what()), "frame 0 (sequence 0): camera 5 is not in the calibration");
+  }
 }
 
 TEST(LaserHeight, PanelsFromCalibrationMatchTheScene) {
-  const Sweep& sweep = LevelSweep();
-  const LaserCabinet cabinet = CabinetOf(sweep);
+  const Sweep scene = LoadScene(nlohmann::json::object());
+  const LaserCabinet cabinet = CabinetOf(scene);
   ASSERT_EQ(cabinet.panels.size(), 2u);
   EXPECT_EQ(cabinet.laser_count, 3);
   for (int side = 0; side < 2; ++side) {
-    const auto& truth = sweep.scene.panels[side];
+    const auto& truth = scene.scene.panels[side];
     const PlanarRectangle& panel = cabinet.panels[side];
     EXPECT_LT((panel.plane.normal - truth.plane.normal).norm(), 1e-9);
     EXPECT_NEAR(panel.plane.offset, truth.plane.offset, 1e-9);
     EXPECT_LT((panel.origin - truth.origin).norm(), 1e-6);
     EXPECT_NEAR(panel.width, truth.width, 1e-6);
     EXPECT_NEAR(panel.height, truth.height, 1e-6);
+  }
+  // A calibration without mirror corners cannot place the panels.
+  Calibration no_corners = scene.calibration;
+  no_corners.mirrors[1].corners_mm.clear();
+  try {
+    LaserCabinetFromCalibration(no_corners, "c.json");
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "c.json: mirrors[1].corners_mm: the laser fit needs the mirror's 4 corners");
   }
 }
 
