@@ -4,6 +4,8 @@
 #include <CLI/CLI.hpp>
 
 #include "host/cli/calibrate_command.h"
+#include "host/cli/calibrate_intrinsics_command.h"
+#include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
@@ -13,6 +15,8 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddSimCommands(app);
   mirrorscan::cli::AddPeaksCommand(app);
   mirrorscan::cli::AddCalibrateCommand(app);
+  mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
+  mirrorscan::cli::AddCalibrateLasersCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
