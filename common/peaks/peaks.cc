@@ -186,6 +186,10 @@ void PeakParams::Validate() const {
   if (roi.x < 0 || roi.y < 0 || roi.width < 0 || roi.height < 0) {
     Invalid("roi", "x, y, width, height must be >= 0");
   }
+  if (along_stripe_half_width < 0 || along_stripe_half_width > kMaxAlongStripeHalfWidth) {
+    Invalid("along_stripe_half_width",
+            "must be in [0, " + std::to_string(kMaxAlongStripeHalfWidth) + "]");
+  }
   for (size_t i = 0; i < excluded.size(); ++i) {
     const PixelRect& e = excluded[i];
     if (e.x < 0 || e.y < 0 || e.width <= 0 || e.height <= 0) {
@@ -197,7 +201,7 @@ void PeakParams::Validate() const {
 PeakParams PeakParams::FromJson(const JsonReader& json) {
   json.AllowOnly({"estimator", "threshold_dn", "window", "min_width_px", "max_width_px",
                   "max_peaks_per_column", "min_separation_px", "saturation_level", "roi",
-                  "excluded"});
+                  "excluded", "along_stripe_half_width"});
   PeakParams p;
   std::vector<std::string> names;
   for (const auto& n : kEstimatorNames) names.push_back(n.name);
@@ -229,6 +233,8 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
   if (json.Has("excluded")) {
     for (const JsonReader& r : json.Objects("excluded")) p.excluded.push_back(rect(r, true));
   }
+  p.along_stripe_half_width = json.Integer("along_stripe_half_width", p.along_stripe_half_width, 0,
+                                           kMaxAlongStripeHalfWidth);
   try {
     p.Validate();
   } catch (const std::invalid_argument& e) {
@@ -405,6 +411,84 @@ bool ByStrength(const Peak& a, const Peak& b) {
   return ByRow(a, b);
 }
 
+// Along-stripe smoothing (peaks.h, along_stripe_half_width).
+constexpr float kLinkPx = 1.5f;   // A neighbour column's peak this close continues the stripe.
+constexpr float kKinkPx = 0.75f;  // Max |second difference| of three consecutive rows.
+
+// Savitzky-Golay weights of the centre of a quadratic through 2m + 1 equally spaced
+// samples: w_k = (3 (3m^2 + 3m - 1) - 15 k^2) / ((2m + 1)(4m^2 + 4m - 3)), k = 0 .. m.
+struct QuadraticKernels {
+  float w[kMaxAlongStripeHalfWidth + 1][kMaxAlongStripeHalfWidth + 1] = {};
+  constexpr QuadraticKernels() {
+    for (int m = 2; m <= kMaxAlongStripeHalfWidth; ++m) {
+      const float den = static_cast<float>((2 * m + 1) * (4 * m * m + 4 * m - 3));
+      for (int k = 0; k <= m; ++k) {
+        w[m][k] = static_cast<float>(3 * (3 * m * m + 3 * m - 1) - 15 * k * k) / den;
+      }
+    }
+  }
+};
+constexpr QuadraticKernels kQuadraticKernels;
+
+// `peaks` sorted by (u, v); column c (relative to the ROI at x0) holds
+// [start[c], start[c + 1]). `rows` receives the unsmoothed rows, which every fit reads.
+void SmoothAlongStripes(int half_width, const uint32_t* start, int ncols, std::vector<float>* rows,
+                        Peak* peaks, int x0) {
+  if (half_width < 2) return;
+  const size_t count = start[ncols];
+  rows->resize(count);
+  for (size_t i = 0; i < count; ++i) (*rows)[i] = peaks[i].v;
+  const float* v = rows->data();
+  auto nearest = [&](int col, float row) {
+    int best = -1;
+    if (col < 0 || col >= ncols) return best;
+    float best_d = kLinkPx;
+    for (uint32_t j = start[col]; j < start[col + 1]; ++j) {
+      const float d = std::abs(v[j] - row);
+      if (d <= best_d) {
+        best_d = d;
+        best = static_cast<int>(j);
+      }
+    }
+    return best;
+  };
+  // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
+  int pair[kMaxAlongStripeHalfWidth + 1][2];
+  auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+  for (size_t i = 0; i < count; ++i) {
+    const int col = peaks[i].u - x0;
+    pair[0][0] = pair[0][1] = static_cast<int>(i);
+    int m = 0;
+    for (int k = 1; k <= half_width; ++k) {
+      const int left = nearest(col - k, v[pair[k - 1][0]]);
+      const int right = nearest(col + k, v[pair[k - 1][1]]);
+      if (left < 0 || right < 0) break;
+      // Each new sample must continue its side's local trend (a step or kink ends the fit).
+      if (k == 1 ? bends(left, static_cast<int>(i), right)
+                 : bends(left, pair[k - 1][0], pair[k - 2][0]) ||
+                       bends(right, pair[k - 1][1], pair[k - 2][1])) {
+        break;
+      }
+      pair[k][0] = left;
+      pair[k][1] = right;
+      m = k;
+    }
+    if (m < 2) continue;  // A quadratic through 3 samples is the row itself.
+    const float* w = kQuadraticKernels.w[m];
+    float row = w[0] * v[i];
+    for (int k = 1; k <= m; ++k) row += w[k] * (v[pair[k][0]] + v[pair[k][1]]);
+    peaks[i].v = row;
+  }
+  // Rows closer than the link distance may swap; keep each column sorted by v.
+  for (int c = 0; c < ncols; ++c) {
+    for (uint32_t j = start[c] + 1; j < start[c + 1]; ++j) {
+      for (uint32_t k = j; k > start[c] && peaks[k].v < peaks[k - 1].v; --k) {
+        std::swap(peaks[k], peaks[k - 1]);
+      }
+    }
+  }
+}
+
 struct RowSink {
   PeakExtractor* self;
   const CandidateSearch* search;
@@ -474,6 +558,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   size_t write = 0, begin = 0;
   for (int col = 0; col < ncols; ++col) {
     const size_t end = column_start_[col];
+    column_start_[col] = static_cast<uint32_t>(write);  // Now where column col's output starts.
     Peak* first = out->data() + begin;
     Peak* last = out->data() + end;
     begin = end;
@@ -501,7 +586,10 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
     }
     for (Peak* it = first; it != last; ++it) (*out)[write++] = *it;
   }
+  column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
+  SmoothAlongStripes(params.along_stripe_half_width, column_start_.data(), ncols, &rows_,
+                     out->data(), roi.x0);
 }
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {

@@ -15,6 +15,8 @@
 //     background from the two flanks, FWHM, width checks, sub-pixel estimator, score;
 //     then per column: min_separation_px (keep the stronger) and max_peaks_per_column
 //     (keep the strongest).
+//  3. Along-stripe smoothing (shared): each peak's row is replaced by a symmetric weighted
+//     mean of its own and its stripe neighbours' rows (along_stripe_half_width).
 
 #include <cstddef>
 #include <cstdint>
@@ -47,6 +49,20 @@ enum class PeakEstimator {
 const char* ToString(PeakEstimator e);
 const std::vector<PeakEstimator>& AllPeakEstimators();
 
+// Along-stripe smoothing. A stripe is a continuous curve over u, and each column's row
+// carries independent noise, so fitting the rows of neighbouring columns of the same stripe
+// lowers the noise below what one column allows. With half width m >= 2, each peak's row
+// becomes the centre value of the least-squares quadratic (Savitzky-Golay) through the
+// rows of the 2m + 1 columns u - m .. u + m of its stripe: no bias on straight, slanted or
+// curved (quadratic) stripes; noise x 0.70 / 0.58 / 0.51 / 0.46 for m = 2 / 3 / 4 / 5.
+// The stripe is followed, not a fixed row window: the neighbour in column u +- 1 is the
+// peak nearest to this one's row (within 1.5 px), the one in u +- 2 the peak nearest to
+// that, and so on. A pair u +- k is used only if both sides are linked and each continues
+// its side's local trend (|second difference of three consecutive rows| <= 0.5 px);
+// otherwise the fit shrinks to the pairs before it, and with fewer than 2 pairs (stripe
+// ends, gaps, steps at depth discontinuities, kinks) the row is the column's own.
+constexpr int kMaxAlongStripeHalfWidth = 8;
+
 struct PixelRect {
   int x = 0, y = 0, width = 0, height = 0;  // width/height 0 in `roi` = to the frame edge.
   bool Contains(int u, int v) const { return u >= x && u < x + width && v >= y && v < y + height; }
@@ -63,6 +79,7 @@ struct PeakParams {
   int saturation_level = 255;       // Samples >= this are clipped.
   PixelRect roi;                    // Default: whole frame.
   std::vector<PixelRect> excluded;  // Peaks whose pixel falls in one of these are dropped.
+  int along_stripe_half_width = 5;  // 0 or 1: off; see kMaxAlongStripeHalfWidth.
 
   // Throws std::invalid_argument "peaks.<key>: problem" on bad values.
   void Validate() const;
@@ -70,7 +87,8 @@ struct PeakParams {
   // {"estimator": "gaussian3", "threshold_dn": 20, "window": 8, "min_width_px": 1.2,
   //  "max_width_px": 8, "max_peaks_per_column": 9, "min_separation_px": 3,
   //  "saturation_level": 255, "roi": {"x":0,"y":0,"width":0,"height":0},
-  //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...]}
+  //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...],
+  //  "along_stripe_half_width": 4}
   // Errors are ConfigError "file: peaks.key: problem".
   static PeakParams FromJson(const JsonReader& json);
 };
@@ -99,6 +117,7 @@ class PeakExtractor {
   std::vector<Candidate> candidates_;  // Of one row (SIMD) or one column (scalar).
   std::vector<Peak> peaks_;            // Refined, before the per-column pass.
   std::vector<uint32_t> column_start_;
+  std::vector<float> rows_;  // Unsmoothed rows, while smoothing along the stripe.
 };
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
