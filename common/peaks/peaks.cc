@@ -433,35 +433,43 @@ constexpr QuadraticKernels kQuadraticKernels;
 // `peaks` sorted by (u, v); column c (relative to the ROI at x0) holds
 // [start[c], start[c + 1]). `rows` receives the unsmoothed rows, which every fit reads.
 void SmoothAlongStripes(int half_width, const uint32_t* start, int ncols, std::vector<float>* rows,
-                        Peak* peaks, int x0) {
+                        std::vector<int32_t>* links, Peak* peaks, int x0) {
   if (half_width < 2) return;
   const size_t count = start[ncols];
   rows->resize(count);
   for (size_t i = 0; i < count; ++i) (*rows)[i] = peaks[i].v;
   const float* v = rows->data();
+  // links[2i] / links[2i + 1]: the peak in the column left / right of peak i nearest to its
+  // row within kLinkPx, or -1. Following links walks along the stripe.
+  links->resize(2 * count);
+  int32_t* link = links->data();
   auto nearest = [&](int col, float row) {
-    int best = -1;
+    int32_t best = -1;
     if (col < 0 || col >= ncols) return best;
     float best_d = kLinkPx;
     for (uint32_t j = start[col]; j < start[col + 1]; ++j) {
       const float d = std::abs(v[j] - row);
       if (d <= best_d) {
         best_d = d;
-        best = static_cast<int>(j);
+        best = static_cast<int32_t>(j);
       }
     }
     return best;
   };
-  // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
-  int pair[kMaxAlongStripeHalfWidth + 1][2];
-  auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
   for (size_t i = 0; i < count; ++i) {
     const int col = peaks[i].u - x0;
-    pair[0][0] = pair[0][1] = static_cast<int>(i);
+    link[2 * i] = nearest(col - 1, v[i]);
+    link[2 * i + 1] = nearest(col + 1, v[i]);
+  }
+  // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
+  int32_t pair[kMaxAlongStripeHalfWidth + 1][2];
+  auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+  for (size_t i = 0; i < count; ++i) {
+    pair[0][0] = pair[0][1] = static_cast<int32_t>(i);
     int m = 0;
     for (int k = 1; k <= half_width; ++k) {
-      const int left = nearest(col - k, v[pair[k - 1][0]]);
-      const int right = nearest(col + k, v[pair[k - 1][1]]);
+      const int32_t left = link[2 * pair[k - 1][0]];
+      const int32_t right = link[2 * pair[k - 1][1] + 1];
       if (left < 0 || right < 0) break;
       // Each new sample must continue its side's local trend (a step or kink ends the fit).
       if (k == 1 ? bends(left, static_cast<int>(i), right)
@@ -588,7 +596,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   }
   column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
-  SmoothAlongStripes(params.along_stripe_half_width, column_start_.data(), ncols, &rows_,
+  SmoothAlongStripes(params.along_stripe_half_width, column_start_.data(), ncols, &rows_, &links_,
                      out->data(), roi.x0);
 }
 

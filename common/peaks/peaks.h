@@ -117,7 +117,8 @@ class PeakExtractor {
   std::vector<Candidate> candidates_;  // Of one row (SIMD) or one column (scalar).
   std::vector<Peak> peaks_;            // Refined, before the per-column pass.
   std::vector<uint32_t> column_start_;
-  std::vector<float> rows_;  // Unsmoothed rows, while smoothing along the stripe.
+  std::vector<float> rows_;     // Unsmoothed rows, while smoothing along the stripe.
+  std::vector<int32_t> links_;  // Each peak's neighbours along its stripe.
 };
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
