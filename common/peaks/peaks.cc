@@ -190,6 +190,9 @@ void PeakParams::Validate() const {
     Invalid("along_stripe_half_width",
             "must be in [0, " + std::to_string(kMaxAlongStripeHalfWidth) + "]");
   }
+  if (!(stripe_end_min_ratio >= 0 && stripe_end_min_ratio <= 1)) {
+    Invalid("stripe_end_min_ratio", "must be in [0, 1]");
+  }
   for (size_t i = 0; i < excluded.size(); ++i) {
     const PixelRect& e = excluded[i];
     if (e.x < 0 || e.y < 0 || e.width <= 0 || e.height <= 0) {
@@ -201,7 +204,8 @@ void PeakParams::Validate() const {
 PeakParams PeakParams::FromJson(const JsonReader& json) {
   json.AllowOnly({"estimator", "threshold_dn", "window", "min_width_px", "max_width_px",
                   "max_peaks_per_column", "min_separation_px", "saturation_level", "roi",
-                  "excluded", "along_stripe_half_width"});
+                  "excluded", "along_stripe_half_width", "drop_isolated_peaks",
+                  "stripe_end_min_ratio"});
   PeakParams p;
   std::vector<std::string> names;
   for (const auto& n : kEstimatorNames) names.push_back(n.name);
@@ -235,6 +239,9 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
   }
   p.along_stripe_half_width = json.Integer("along_stripe_half_width", p.along_stripe_half_width, 0,
                                            kMaxAlongStripeHalfWidth);
+  p.drop_isolated_peaks = json.Bool("drop_isolated_peaks", p.drop_isolated_peaks);
+  p.stripe_end_min_ratio =
+      static_cast<float>(json.Number("stripe_end_min_ratio", p.stripe_end_min_ratio, 0, 1));
   try {
     p.Validate();
   } catch (const std::invalid_argument& e) {
@@ -430,26 +437,35 @@ struct QuadraticKernels {
 };
 constexpr QuadraticKernels kQuadraticKernels;
 
-// `peaks` sorted by (u, v); column c (relative to the ROI at x0) holds
-// [start[c], start[c + 1]). `rows` receives the unsmoothed rows, which every fit reads.
-void SmoothAlongStripes(int half_width, const uint32_t* start, int ncols, std::vector<float>* rows,
-                        std::vector<int32_t>* links, Peak* peaks, int x0) {
-  if (half_width < 2) return;
+// The pass across columns (peaks.h, stage 3). `peaks` sorted by (u, v); column c
+// (relative to the ROI at x0) holds [start[c], start[c + 1]); on return `peaks` and
+// `start` hold what is kept. Every decision reads the rows, widths and amplitudes of stage
+// 2 only, so the result does not depend on the order peaks are visited in.
+void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* start,
+                     std::vector<float>* rows, std::vector<int32_t>* links,
+                     std::vector<uint8_t>* dropped, std::vector<Peak>* peaks) {
+  const int half_width = params.along_stripe_half_width;
+  const float end_ratio = params.stripe_end_min_ratio;
+  if (half_width < 2 && !params.drop_isolated_peaks && !(end_ratio > 0)) return;
   const size_t count = start[ncols];
+  Peak* p = peaks->data();
   rows->resize(count);
-  for (size_t i = 0; i < count; ++i) (*rows)[i] = peaks[i].v;
+  for (size_t i = 0; i < count; ++i) (*rows)[i] = p[i].v;
   const float* v = rows->data();
-  // links[2i] / links[2i + 1]: the peak in the column left / right of peak i nearest to its
-  // row within kLinkPx, or -1. Following links walks along the stripe.
+  // links[2i] / links[2i + 1]: the peak in the column left / right of peak i nearest to
+  // its row, if their half-maximum extents overlap or they are within kLinkPx (so a steep
+  // stripe, wide in its column, still links), else -1. Following links walks the stripe.
   links->resize(2 * count);
   int32_t* link = links->data();
-  auto nearest = [&](int col, float row) {
+  // The peak in column `col` nearest to peak i's row within `reach` columns' worth of link
+  // distance (1 beside it, 2 across a one-column gap), or -1.
+  auto nearest = [&](int col, size_t i, float reach) {
     int32_t best = -1;
     if (col < 0 || col >= ncols) return best;
-    float best_d = kLinkPx;
+    float best_d = std::numeric_limits<float>::max();
     for (uint32_t j = start[col]; j < start[col + 1]; ++j) {
-      const float d = std::abs(v[j] - row);
-      if (d <= best_d) {
+      const float d = std::abs(v[j] - v[i]);
+      if (d < best_d && d <= reach * std::max(kLinkPx, 0.5f * (p[i].width + p[j].width))) {
         best_d = d;
         best = static_cast<int32_t>(j);
       }
@@ -457,44 +473,78 @@ void SmoothAlongStripes(int half_width, const uint32_t* start, int ncols, std::v
     return best;
   };
   for (size_t i = 0; i < count; ++i) {
-    const int col = peaks[i].u - x0;
-    link[2 * i] = nearest(col - 1, v[i]);
-    link[2 * i + 1] = nearest(col + 1, v[i]);
+    const int col = p[i].u - x0;
+    link[2 * i] = nearest(col - 1, i, 1);
+    link[2 * i + 1] = nearest(col + 1, i, 1);
   }
-  // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
-  int32_t pair[kMaxAlongStripeHalfWidth + 1][2];
-  auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+  // A stripe spans columns: a peak with no neighbour is no stripe (noise on an ambient
+  // edge, a speck), and a stripe's end column much dimmer than the column next to it is
+  // only partly lit (the stripe turns or is cut inside it, or it holds only the blur past
+  // the end): its row is a mixed-pixel guess off the stripe's centre line. A side where
+  // the stripe goes on after a one-column gap (a dim stripe dipping under the threshold)
+  // is no end.
+  dropped->assign(count, 0);
   for (size_t i = 0; i < count; ++i) {
-    pair[0][0] = pair[0][1] = static_cast<int32_t>(i);
-    int m = 0;
-    for (int k = 1; k <= half_width; ++k) {
-      const int32_t left = link[2 * pair[k - 1][0]];
-      const int32_t right = link[2 * pair[k - 1][1] + 1];
-      if (left < 0 || right < 0) break;
-      // Each new sample must continue its side's local trend (a step or kink ends the fit).
-      if (k == 1 ? bends(left, static_cast<int>(i), right)
-                 : bends(left, pair[k - 1][0], pair[k - 2][0]) ||
-                       bends(right, pair[k - 1][1], pair[k - 2][1])) {
-        break;
-      }
-      pair[k][0] = left;
-      pair[k][1] = right;
-      m = k;
+    const int col = p[i].u - x0;
+    const int32_t left = link[2 * i], right = link[2 * i + 1];
+    if (left >= 0 && right >= 0) continue;
+    if ((left < 0 && nearest(col - 2, i, 2) >= 0) || (right < 0 && nearest(col + 2, i, 2) >= 0)) {
+      continue;
     }
-    if (m < 2) continue;  // A quadratic through 3 samples is the row itself.
-    const float* w = kQuadraticKernels.w[m];
-    float row = w[0] * v[i];
-    for (int k = 1; k <= m; ++k) row += w[k] * (v[pair[k][0]] + v[pair[k][1]]);
-    peaks[i].v = row;
+    if (left < 0 && right < 0) {
+      (*dropped)[i] = params.drop_isolated_peaks;
+    } else {
+      (*dropped)[i] = p[i].intensity < end_ratio * p[left < 0 ? right : left].intensity;
+    }
   }
-  // Rows closer than the link distance may swap; keep each column sorted by v.
+  for (size_t i = 0; i < 2 * count; ++i)
+    if (link[i] >= 0 && (*dropped)[link[i]]) link[i] = -1;
+  if (half_width >= 2) {
+    // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
+    int32_t pair[kMaxAlongStripeHalfWidth + 1][2];
+    auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+    for (size_t i = 0; i < count; ++i) {
+      if ((*dropped)[i]) continue;
+      pair[0][0] = pair[0][1] = static_cast<int32_t>(i);
+      int m = 0;
+      for (int k = 1; k <= half_width; ++k) {
+        const int32_t left = link[2 * pair[k - 1][0]];
+        const int32_t right = link[2 * pair[k - 1][1] + 1];
+        if (left < 0 || right < 0) break;
+        // Each new sample must continue its side's local trend (a step or kink ends the
+        // fit).
+        if (k == 1 ? bends(left, static_cast<int>(i), right)
+                   : bends(left, pair[k - 1][0], pair[k - 2][0]) ||
+                         bends(right, pair[k - 1][1], pair[k - 2][1])) {
+          break;
+        }
+        pair[k][0] = left;
+        pair[k][1] = right;
+        m = k;
+      }
+      if (m < 2) continue;  // A quadratic through 3 samples is the row itself.
+      const float* w = kQuadraticKernels.w[m];
+      float row = w[0] * v[i];
+      for (int k = 1; k <= m; ++k) row += w[k] * (v[pair[k][0]] + v[pair[k][1]]);
+      p[i].v = row;
+    }
+  }
+  // Compact; rows may have moved past each other by less than the link distance, so keep
+  // each column sorted by v.
+  size_t write = 0;
   for (int c = 0; c < ncols; ++c) {
-    for (uint32_t j = start[c] + 1; j < start[c + 1]; ++j) {
-      for (uint32_t k = j; k > start[c] && peaks[k].v < peaks[k - 1].v; --k) {
-        std::swap(peaks[k], peaks[k - 1]);
-      }
+    const uint32_t begin = start[c], end = start[c + 1];
+    start[c] = static_cast<uint32_t>(write);
+    for (uint32_t j = begin; j < end; ++j) {
+      if ((*dropped)[j]) continue;
+      size_t k = write++;
+      const Peak x = p[j];
+      for (; k > start[c] && x.v < p[k - 1].v; --k) p[k] = p[k - 1];
+      p[k] = x;
     }
   }
+  start[ncols] = static_cast<uint32_t>(write);
+  peaks->resize(write);
 }
 
 struct RowSink {
@@ -596,8 +646,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   }
   column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
-  SmoothAlongStripes(params.along_stripe_half_width, column_start_.data(), ncols, &rows_, &links_,
-                     out->data(), roi.x0);
+  AlongStripePass(params, ncols, roi.x0, column_start_.data(), &rows_, &links_, &dropped_, out);
 }
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {

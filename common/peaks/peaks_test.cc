@@ -433,6 +433,60 @@ TEST(AlongStripe, EndsGapsAndStepsAreNotSmearedAcross) {
   EXPECT_LE(worst, 0.02);
 }
 
+// Adds a Gaussian column profile (amplitude `a`, sigma 1 px) at row v of column u.
+void AddColumnProfile(Frame* f, int u, double v, double a) {
+  for (int r = static_cast<int>(v) - 6; r <= static_cast<int>(v) + 6; ++r) {
+    uint8_t& px = f->pixels[static_cast<size_t>(r) * f->width + u];
+    px =
+        static_cast<uint8_t>(std::min(255L, px + std::lround(a * synth::PixelIntegral(r, v, 1.0))));
+  }
+}
+
+// Peaks of `peaks` within 1.5 px of row v in column u.
+int CountAt(const std::vector<Peak>& peaks, int u, double v) {
+  int n = 0;
+  for (const Peak& p : peaks) n += p.u == u && std::abs(p.v - v) < 1.5;
+  return n;
+}
+
+// A lone column-wide blob is no stripe; a stripe's end column far dimmer than the one
+// next to it is a partly lit column; a dim stripe's one-column gap is no end; an end as
+// bright as its stripe stays.
+TEST(AlongStripe, IsolatedPeaksAndFadedEndsDropped) {
+  Scene scene;
+  scene.ambient_du = 0;
+  scene.ambient_dv = 0;
+  synth::Stripe ends{
+      .v0 = 200.3, .amplitude = 120, .sigma = 1.0, .gap_begin = 500, .gap_end = 1024};
+  synth::Stripe gapped{
+      .v0 = 400.6, .slope = 0.01, .amplitude = 60, .sigma = 1.0, .gap_begin = 300, .gap_end = 301};
+  scene.stripes = {ends, gapped};
+  Frame f = synth::Render(scene, 9);
+  AddColumnProfile(&f, 500, 200.3, 45);  // Faded end: 45 < 0.5 x 120.
+  AddColumnProfile(&f, 800, 600.2, 80);  // Isolated.
+  // The gapped stripe's column 301 dims to 25 DN above its neighbour's 60 (ratio 0.42),
+  // but the stripe goes on at 299 across the gap: no end.
+  for (int r = 390; r < 410; ++r) {
+    uint8_t& px = f.pixels[static_cast<size_t>(r) * f.width + 301];
+    px = static_cast<uint8_t>(30 + std::lround((px - 30) * 25.0 / 60.0));
+  }
+  const auto peaks = ExtractPeaks(f.view(), PeakParams());
+  EXPECT_EQ(CountAt(peaks, 500, 200.3), 0);
+  EXPECT_EQ(CountAt(peaks, 800, 600.2), 0);
+  EXPECT_EQ(CountAt(peaks, 499, 200.3), 1);  // Now the stripe's end, as bright as it.
+  EXPECT_EQ(CountAt(peaks, 301, gapped.Centre(301)), 1);
+  EXPECT_EQ(CountAt(peaks, 299, gapped.Centre(299)), 1);
+  EXPECT_EQ(CountAt(peaks, 0, 200.3), 1);  // The frame edge ends no stripe's light.
+  EXPECT_EQ(CountAt(peaks, 1023, gapped.Centre(1023)), 1);
+  PeakParams keep;
+  keep.drop_isolated_peaks = false;
+  keep.stripe_end_min_ratio = 0;
+  const auto all = ExtractPeaks(f.view(), keep);
+  EXPECT_EQ(CountAt(all, 500, 200.3), 1);
+  EXPECT_EQ(CountAt(all, 800, 600.2), 1);
+  EXPECT_EQ(all.size(), peaks.size() + 2);
+}
+
 TEST(PeakOutput, SortedScoredAndReusable) {
   std::mt19937 rng(4);
   Scene scene;
@@ -482,7 +536,8 @@ TEST(PeakOutput, RoiAndExcludedRectangles) {
 TEST(PeakParamsTest, FromJsonReadsAndRejects) {
   const auto good = JsonReader::ParseText(
       R"({"peaks": {"estimator": "gaussian3", "threshold_dn": 25, "window": 10,
-          "along_stripe_half_width": 3,
+          "along_stripe_half_width": 3, "drop_isolated_peaks": false,
+          "stripe_end_min_ratio": 0.25,
           "roi": {"x": 1, "y": 2, "width": 30, "height": 40},
           "excluded": [{"x": 5, "y": 6, "width": 7, "height": 8}]}})",
       "board.json");
@@ -491,6 +546,8 @@ TEST(PeakParamsTest, FromJsonReadsAndRejects) {
   EXPECT_EQ(p.threshold_dn, 25);
   EXPECT_EQ(p.window, 10);
   EXPECT_EQ(p.along_stripe_half_width, 3);
+  EXPECT_FALSE(p.drop_isolated_peaks);
+  EXPECT_FLOAT_EQ(p.stripe_end_min_ratio, 0.25f);
   EXPECT_EQ(p.roi.height, 40);
   ASSERT_EQ(p.excluded.size(), 1u);
   EXPECT_EQ(p.excluded[0].width, 7);
@@ -525,7 +582,14 @@ TEST(PeakParamsTest, FromJsonReadsAndRejects) {
       error(R"({"peaks": {"along_stripe_half_width": -1}})").find("peaks.along_stripe_half_width"),
       std::string::npos);
 
+  EXPECT_NE(error(R"({"peaks": {"stripe_end_min_ratio": 1.5}})").find("peaks.stripe_end_min_ratio"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"peaks": {"drop_isolated_peaks": 1}})").find("peaks.drop_isolated_peaks"),
+            std::string::npos);
   PeakParams bad;
+  bad.stripe_end_min_ratio = -0.1f;
+  EXPECT_THROW(bad.Validate(), std::invalid_argument);
+  bad.stripe_end_min_ratio = 0.5f;
   bad.along_stripe_half_width = kMaxAlongStripeHalfWidth + 1;
   EXPECT_THROW(bad.Validate(), std::invalid_argument);
   bad.along_stripe_half_width = 0;
