@@ -459,23 +459,37 @@ void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* star
   int32_t* link = links->data();
   // The peak in column `col` nearest to peak i's row within `reach` columns' worth of link
   // distance (1 beside it, 2 across a one-column gap), or -1.
-  auto nearest = [&](int col, size_t i, float reach) {
-    int32_t best = -1;
-    if (col < 0 || col >= ncols) return best;
-    float best_d = std::numeric_limits<float>::max();
-    for (uint32_t j = start[col]; j < start[col + 1]; ++j) {
-      const float d = std::abs(v[j] - v[i]);
-      if (d < best_d && d <= reach * std::max(kLinkPx, 0.5f * (p[i].width + p[j].width))) {
-        best_d = d;
-        best = static_cast<int32_t>(j);
-      }
-    }
-    return best;
+  // The peak in column `col` nearest to peak i's row, if within `reach` times the link
+  // distance, or -1.
+  auto within = [&](size_t i, uint32_t j, float reach) {
+    return std::abs(v[j] - v[i]) <= reach * std::max(kLinkPx, 0.5f * (p[i].width + p[j].width));
   };
-  for (size_t i = 0; i < count; ++i) {
-    const int col = p[i].u - x0;
-    link[2 * i] = nearest(col - 1, i, 1);
-    link[2 * i + 1] = nearest(col + 1, i, 1);
+  auto nearest = [&](int col, size_t i, float reach) {
+    if (col < 0 || col >= ncols || start[col] == start[col + 1]) return int32_t{-1};
+    uint32_t best = start[col];
+    for (uint32_t j = best + 1; j < start[col + 1]; ++j)
+      if (std::abs(v[j] - v[i]) < std::abs(v[best] - v[i])) best = j;
+    return within(i, best, reach) ? static_cast<int32_t>(best) : int32_t{-1};
+  };
+  // Both columns are sorted by v: one merge-like walk per pair of columns finds the
+  // nearest peak (the same one `nearest` finds) for every peak of either column.
+  auto link_columns = [&](int from, int to, int side) {
+    uint32_t j = start[to];
+    const uint32_t end = start[to + 1];
+    for (uint32_t i = start[from]; i < start[from + 1]; ++i) {
+      int32_t& out = link[2 * i + side];
+      out = -1;
+      if (j == end) continue;
+      while (j + 1 < end && v[j + 1] <= v[i]) ++j;
+      uint32_t best = j;
+      if (j + 1 < end && std::abs(v[j + 1] - v[i]) < std::abs(v[j] - v[i])) best = j + 1;
+      if (within(i, best, 1)) out = static_cast<int32_t>(best);
+    }
+  };
+  for (int c = 0; c < ncols; ++c) {
+    for (uint32_t i = start[c]; i < start[c + 1]; ++i) link[2 * i] = link[2 * i + 1] = -1;
+    if (c > 0) link_columns(c, c - 1, 0);
+    if (c + 1 < ncols) link_columns(c, c + 1, 1);
   }
   // A stripe spans columns: a peak with no neighbour is no stripe (noise on an ambient
   // edge, a speck), and a stripe's end column much dimmer than the column next to it is
