@@ -457,13 +457,12 @@ void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* star
   // stripe, wide in its column, still links), else -1. Following links walks the stripe.
   links->resize(2 * count);
   int32_t* link = links->data();
-  // The peak in column `col` nearest to peak i's row within `reach` columns' worth of link
-  // distance (1 beside it, 2 across a one-column gap), or -1.
-  // The peak in column `col` nearest to peak i's row, if within `reach` times the link
-  // distance, or -1.
+  // Whether peak j is within `reach` times the link distance of peak i's row (reach 1 for
+  // the column beside it, 2 across a one-column gap).
   auto within = [&](size_t i, uint32_t j, float reach) {
     return std::abs(v[j] - v[i]) <= reach * std::max(kLinkPx, 0.5f * (p[i].width + p[j].width));
   };
+  // The peak in column `col` nearest to peak i's row, if within reach, else -1.
   auto nearest = [&](int col, size_t i, float reach) {
     if (col < 0 || col >= ncols || start[col] == start[col + 1]) return int32_t{-1};
     uint32_t best = start[col];
