@@ -15,7 +15,8 @@
 //     background from the two flanks, FWHM, width checks, sub-pixel estimator, score;
 //     then per column: min_separation_px (keep the stronger) and max_peaks_per_column
 //     (keep the strongest).
-//  3. Across columns (shared): each peak is linked to its stripe's peaks in the columns
+//  3. Across columns (shared, so SIMD and scalar agree): each peak is linked to its stripe's peaks
+//  in the columns
 //     beside it; isolated peaks and faded stripe ends are dropped (drop_isolated_peaks,
 //     stripe_end_min_ratio), and each row is smoothed along its stripe
 //     (along_stripe_half_width).
@@ -52,17 +53,18 @@ const char* ToString(PeakEstimator e);
 const std::vector<PeakEstimator>& AllPeakEstimators();
 
 // Along-stripe smoothing. A stripe is a continuous curve over u, and each column's row
-// carries independent noise, so fitting the rows of neighbouring columns of the same stripe
-// lowers the noise below what one column allows. With half width m >= 2, each peak's row
-// becomes the centre value of the least-squares quadratic (Savitzky-Golay) through the
-// rows of the 2m + 1 columns u - m .. u + m of its stripe: no bias on straight, slanted or
-// curved (quadratic) stripes; noise x 0.70 / 0.58 / 0.51 / 0.46 for m = 2 / 3 / 4 / 5.
-// The stripe is followed, not a fixed row window: the neighbour in column u +- 1 is the
-// peak nearest to this one's row if within 1.5 px or their half-maximum extents overlap,
-// the one in u +- 2 the neighbour's neighbour, and so on. A pair u +- k is used only if both sides
-// are linked and each continues its side's local trend (|second difference of three consecutive
-// rows| <= 0.5 px); otherwise the fit shrinks to the pairs before it, and with fewer than 2 pairs
-// (stripe ends, gaps, steps at depth discontinuities, kinks) the row is the column's own.
+// carries independent noise, so fitting the rows of neighbouring columns of the same
+// stripe lowers the noise below what one column allows. With half width m >= 2, each
+// peak's row becomes the centre value of the least-squares quadratic (Savitzky-Golay)
+// through the rows of the 2m + 1 columns u - m .. u + m of its stripe: no bias on
+// straight, slanted or curved (quadratic) stripes; noise x 0.70 / 0.58 / 0.51 / 0.46 for
+// m = 2 / 3 / 4 / 5. The stripe is followed, not a fixed row window: the neighbour in
+// column u +- 1 is the peak there nearest to this one's row, if within 1.5 px or their
+// half-maximum extents overlap; the one in u +- 2 is the neighbour's neighbour, and so
+// on. A pair u +- k is used only if both sides are linked and each continues its side's
+// local trend (|second difference of three consecutive rows| <= 0.75 px); otherwise the
+// fit shrinks to the pairs before it, and with fewer than 2 pairs (stripe ends, gaps,
+// steps at depth discontinuities, kinks) the row is the column's own.
 constexpr int kMaxAlongStripeHalfWidth = 8;
 
 struct PixelRect {
