@@ -268,7 +268,9 @@ TEST(PeaksAccuracyTest, AlongStripeStageBeatsColumnsAlone) {
   for (const auto& c : Conditions()) {
     const Figures& with = Table().at(c.name).at(Default());
     const Figures& without = Table().at(c.name).at(Name(columns_only));
-    if (c.noise) EXPECT_LT(with.rms, 0.8 * without.rms) << c.name;
+    if (c.noise) {
+      EXPECT_LT(with.rms, 0.8 * without.rms) << c.name;
+    }
     EXPECT_LE(with.rms, without.rms) << c.name;
     EXPECT_LT(with.false_per_frame, without.false_per_frame) << c.name;
     EXPECT_GE(with.recall, without.recall - 0.001) << c.name;

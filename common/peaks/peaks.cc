@@ -437,10 +437,10 @@ struct QuadraticKernels {
 };
 constexpr QuadraticKernels kQuadraticKernels;
 
-// The pass across columns (stage 3 of peaks.h). `peaks` sorted by
-// (u, v); column c (relative to the ROI at x0) holds [start[c], start[c + 1]); on return `peaks`
-// and `start` hold what is kept. Every decision reads the rows, widths and amplitudes of stage 2
-// only, so the result does not depend on the order peaks are visited in.
+// The pass across columns (stage 3 of peaks.h). `peaks` sorted by (u, v); column c
+// (relative to the ROI at x0) holds [start[c], start[c + 1]); on return `peaks` and
+// `start` hold what is kept. Every decision reads the rows, widths and amplitudes of
+// stage 2 only, so the result does not depend on the order peaks are visited in.
 void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* start,
                      std::vector<float>* rows, std::vector<int32_t>* links,
                      std::vector<uint8_t>* dropped, std::vector<Peak>* peaks) {
