@@ -1,5 +1,6 @@
 #include "firmware/board/board_config.h"
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 #include <string>
@@ -90,14 +91,15 @@ BoardDrive ParseDrive(const JsonReader& drive) {
 }
 
 ScanConfig ParseScan(const JsonReader& scan, const BoardDrive& drive) {
-  scan.AllowOnly(
-      {"max_laser_on_s", "sweep_start_mm", "sweep_end_mm", "speed_mm_s", "home_timeout_s"});
+  scan.AllowOnly({"max_laser_on_s", "sweep_start_mm", "sweep_end_mm", "speed_mm_s",
+                  "home_timeout_s", "camera_stall_ms"});
   ScanConfig s;
   s.max_laser_on_s = scan.Number("max_laser_on_s", std::nullopt, 0.1, 600.0);
   s.sweep_start_mm = scan.Number("sweep_start_mm");
   s.sweep_end_mm = scan.Number("sweep_end_mm");
   s.speed_mm_s = scan.Number("speed_mm_s", std::nullopt, 1e-3, 1e5);
   s.home_timeout_s = scan.Number("home_timeout_s", std::nullopt, 0.1, 600.0);
+  s.camera_stall_ms = scan.Number("camera_stall_ms", s.camera_stall_ms, 50.0, 10000.0);
   if (s.sweep_start_mm == s.sweep_end_mm) {
     scan.Fail("sweep_end_mm", "must differ from sweep_start_mm");
   }
@@ -150,7 +152,8 @@ BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& fi
   if (!json.is_object()) throw ConfigError(file + ": expected a JSON object");
   const JsonReader r(json, file);
   r.AllowOnly({"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store",
-               "service", "calibration"});  // "calibration" is the host's (host/calibration)
+               "service", "virtual",
+               "calibration"});  // "calibration" is the host's (host/calibration)
   BoardConfig c;
   c.board = NonEmptyString(r, "board");
   c.description = r.String("description");
@@ -161,6 +164,20 @@ BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& fi
   c.scan = ParseScan(r.Object("scan"), c.drive);
   c.store = ParseStore(r.Object("store"));
   c.service = ParseService(r.Object("service"));
+  const bool virtual_cameras = std::any_of(
+      c.cameras.begin(), c.cameras.end(),
+      [](const BoardCamera& camera) { return camera.backend == CameraBackend::kVirtual; });
+  if (r.Has("virtual")) {
+    const JsonReader v = r.Object("virtual");
+    v.AllowOnly({"scene"});
+    const std::filesystem::path scene = NonEmptyString(v, "scene");
+    c.virtual_scene =
+        scene.is_absolute() ? scene : std::filesystem::path(file).parent_path() / scene;
+  } else if (virtual_cameras) {
+    r.Fail("virtual",
+           "required by the cameras with backend \"virtual\" (e.g. {\"scene\": "
+           "\"scenes/mannequin.json\"})");
+  }
   return c;
 }
 

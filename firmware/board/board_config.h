@@ -41,6 +41,7 @@ struct ScanConfig {
   double sweep_end_mm = 1800.0;
   double speed_mm_s = 100.0;
   double home_timeout_s = 30.0;
+  double camera_stall_ms = 250.0;  // no frame for this long during a sweep is a fault
 };
 
 // "store": the on-device scan store.
@@ -66,6 +67,9 @@ struct BoardConfig {
   ScanConfig scan;
   StoreConfig store;
   ServiceConfig service;
+  // "virtual": the virtual cabinet's scene file, resolved against board.json's folder.
+  // Required when a camera has backend "virtual"; empty otherwise.
+  std::filesystem::path virtual_scene;
 
   static BoardConfig Load(const std::filesystem::path& board_json);
   // `file` names the source in errors.

@@ -52,6 +52,10 @@ TEST(BoardConfigTest, VirtualBoardUsesVirtualBackends) {
   EXPECT_EQ(c.gpio.backend, hal::GpioBackend::kVirtual);
   EXPECT_EQ(c.drive.backend, BoardDrive::Backend::kVirtual);
   EXPECT_EQ(c.gpio.lasers.size(), 3u);
+  // The scene is found beside board.json, whatever the working directory.
+  EXPECT_EQ(c.virtual_scene, kBoards / "virtual" / "scenes" / "mannequin.json");
+  EXPECT_TRUE(std::filesystem::exists(c.virtual_scene));
+  EXPECT_EQ(c.scan.camera_stall_ms, 250.0);
 }
 
 TEST(BoardConfigTest, PiBoardsUseHardwareBackends) {
@@ -90,6 +94,21 @@ class BadBoardTest : public ::testing::Test {
 };
 
 TEST_F(BadBoardTest, VirtualBoardParses) { EXPECT_NO_THROW(BoardConfig::Parse(json_, "b")); }
+
+TEST_F(BadBoardTest, VirtualCamerasNeedAScene) {
+  json_.erase("virtual");
+  ExpectError("virtual", "required");
+}
+
+TEST_F(BadBoardTest, UnknownKeyInVirtual) {
+  json_["virtual"]["seen"] = "x.json";
+  ExpectError("virtual.seen", "unknown");
+}
+
+TEST_F(BadBoardTest, CameraStallOutOfRange) {
+  json_["scan"]["camera_stall_ms"] = 10;
+  ExpectError("scan.camera_stall_ms");
+}
 
 TEST_F(BadBoardTest, UnknownTopLevelKey) {
   json_["lazers"] = nlohmann::json::object();

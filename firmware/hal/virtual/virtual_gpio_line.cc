@@ -2,6 +2,7 @@
 
 #include <utility>
 
+#include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
 
 namespace mirrorscan::hal {
@@ -23,6 +24,7 @@ void VirtualGpioLine::SetValue(bool high) {
                         "virtual gpio " + name_ + ": SetValue on an input line");
   }
   ThrowIfFailing("set value");
+  if (high != level_) last_change_ns_ = SteadyNowNs();
   level_ = high;
   history_.push_back(high);
 }
@@ -75,6 +77,11 @@ void VirtualGpioLine::SetFailing(bool failing) {
     failing_ = failing;
   }
   edge_.notify_all();
+}
+
+int64_t VirtualGpioLine::last_change_ns() const {
+  std::lock_guard lock(mutex_);
+  return last_change_ns_;
 }
 
 }  // namespace mirrorscan::hal

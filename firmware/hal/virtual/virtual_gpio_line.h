@@ -34,6 +34,9 @@ class VirtualGpioLine final : public GpioLine {
   // The test / simulation side.
   bool driven() const;                // the level the firmware drives now
   std::vector<bool> history() const;  // every level the firmware drove, in order
+  // Steady-clock time of the last SetValue that changed the level (0: never changed), so
+  // tests can measure how fast the firmware reacted.
+  int64_t last_change_ns() const;
   // Sets an input's level at `timestamp_ns`; queues an edge if the level changes.
   void InjectEdge(int64_t timestamp_ns, bool high);
   void SetFailing(bool failing);
@@ -50,6 +53,7 @@ class VirtualGpioLine final : public GpioLine {
   bool level_;
   bool failing_ = false;
   std::vector<bool> history_;
+  int64_t last_change_ns_ = 0;
   std::deque<GpioEdge> edges_;
 };
 

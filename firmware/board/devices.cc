@@ -1,0 +1,97 @@
+#include "firmware/board/devices.h"
+
+#include <algorithm>
+#include <string>
+#include <utility>
+
+#include "firmware/hal/hardware_error.h"
+#include "firmware/hal/libcamera/libcamera_loader.h"
+#include "firmware/hal/modbus/modbus_slide_drive.h"
+#include "firmware/hal/replay/replay_camera.h"
+
+namespace mirrorscan::board {
+namespace {
+
+using hal::HardwareError;
+
+std::unique_ptr<hal::SlideDrive> MakeDrive(const BoardConfig& config, BoardDevices& devices) {
+  if (config.drive.backend == BoardDrive::Backend::kModbus) {
+    return std::make_unique<hal::ModbusSlideDrive>(config.drive.modbus);
+  }
+  devices.drive_sim = virtual_cabinet::DriveSim::ServeTcp({});
+  hal::ModbusDriveConfig modbus;  // the simulator's default register map
+  modbus.host = "127.0.0.1";
+  modbus.port = devices.drive_sim->port();
+  return std::make_unique<hal::ModbusSlideDrive>(modbus);
+}
+
+std::unique_ptr<hal::Camera> MakeCamera(const BoardConfig& config, const BoardCamera& camera,
+                                        const DeviceOptions& options, BoardDevices& devices) {
+  switch (camera.backend) {
+    case CameraBackend::kLibcamera:
+      // The module is dlopen'ed here and only here (docs/cameras.md).
+      return hal::OpenLibcameraCamera(camera.id);
+    case CameraBackend::kReplay:
+      // A recording loops: a sweep usually outlasts it.
+      return std::make_unique<hal::ReplayCamera>(hal::ReplayOptions{camera.path, true});
+    case CameraBackend::kVirtual:
+      break;
+  }
+  if (!devices.drive_sim || devices.virtual_lasers.empty()) {
+    throw HardwareError(HardwareError::Kind::kInvalidArgument,
+                        "camera " + camera.name +
+                            ": a virtual camera needs drive.backend and gpio.backend \"virtual\"");
+  }
+  if (!devices.cabinet) {
+    const std::filesystem::path scene =
+        options.scene.empty() ? config.virtual_scene : options.scene;
+    devices.cabinet = OpenVirtualCabinet(scene, config.scan.sweep_start_mm);
+  }
+  virtual_cabinet::DriveSim* sim = devices.drive_sim.get();
+  std::vector<std::pair<hal::VirtualGpioLine*, bool>> lasers;
+  for (size_t i = 0; i < devices.virtual_lasers.size(); ++i) {
+    lasers.emplace_back(devices.virtual_lasers[i], config.gpio.lasers[i].active_low);
+  }
+  // The scene sees the true slide (the simulation's state, not the Modbus readback) and
+  // the laser lines' levels.
+  return devices.cabinet->MakeCamera(
+      camera.scene_camera, [sim] { return sim->State().model.position_mm; },
+      [lasers] {
+        return std::any_of(lasers.begin(), lasers.end(), [](const auto& line) {
+          return hal::ActiveLevelLine::ToActive(line.first->driven(), line.second);
+        });
+      });
+}
+
+}  // namespace
+
+BoardDevices MakeBoardDevices(const BoardConfig& config, const DeviceOptions& options) {
+  const bool any_virtual_camera =
+      std::any_of(config.cameras.begin(), config.cameras.end(),
+                  [](const BoardCamera& c) { return c.backend == CameraBackend::kVirtual; });
+  if (!options.scene.empty() && !any_virtual_camera) {
+    throw HardwareError(HardwareError::Kind::kInvalidArgument,
+                        "--scene is for boards with virtual cameras only");
+  }
+  BoardDevices devices;
+  devices.drive = MakeDrive(config, devices);
+
+  hal::GpioLines lines = hal::MakeGpioLines(config.gpio, config.gpio.backend);
+  if (config.gpio.backend == hal::GpioBackend::kVirtual) {
+    for (auto& laser : lines.lasers) {
+      devices.virtual_lasers.push_back(dynamic_cast<hal::VirtualGpioLine*>(laser.line.get()));
+    }
+    devices.virtual_button = dynamic_cast<hal::VirtualGpioLine*>(lines.button.line.get());
+    devices.button_active_low = config.gpio.button.active_low;
+  }
+  devices.gpio = hal::MakeGpioDevices(config.gpio, std::move(lines));
+
+  for (const BoardCamera& camera : config.cameras) {
+    std::unique_ptr<hal::Camera> made = MakeCamera(config, camera, options, devices);
+    made->Configure(camera.config);
+    devices.cameras.push_back(std::move(made));
+  }
+  return devices;
+}
+
+}  // namespace mirrorscan::board

@@ -1,0 +1,538 @@
+// The sequencer on the virtual board's hardware minus the renderer: the simulated Modbus
+// drive over loopback TCP through the real ModbusSlideDrive, virtual GPIO lines, and
+// replay cameras playing PGM frames this test writes (a horizontal stripe at a known row),
+// so it runs under qemu-aarch64 too. Every fault test asserts the laser lines' levels,
+// the trip time, the final state, and the archive's footer and metadata in the store.
+
+#include "firmware/scan/sequencer.h"
+
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "boards/virtual/drive_sim/drive_sim.h"
+#include "common/scan_format/scan_format.h"
+#include "firmware/hal/clock.h"
+#include "firmware/hal/gpio_factory.h"
+#include "firmware/hal/modbus/modbus_slide_drive.h"
+#include "firmware/hal/replay/replay_camera.h"
+#include "firmware/hal/virtual/virtual_gpio_line.h"
+
+namespace mirrorscan::scan {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+constexpr int kWidth = 160;
+constexpr int kHeight = 120;
+constexpr int kFiles = 8;
+constexpr double kSweepStart = 20.0;
+constexpr double kSweepEnd = 170.0;
+constexpr double kSpeed = 150.0;  // a 1 s sweep
+constexpr int64_t kMs = 1000000;
+
+double StripeRow(uint64_t sequence) { return 30.0 + 5.0 * static_cast<double>(sequence % kFiles); }
+
+// A camera decorator that injects what the replay camera cannot: a stalled sensor (frames
+// vanish without a trace) and lost frames (a sequence gap, counted in dropped()).
+class FaultyCamera final : public hal::Camera {
+ public:
+  explicit FaultyCamera(std::unique_ptr<hal::Camera> inner) : inner_(std::move(inner)) {}
+  void Configure(const hal::CameraConfig& config) override { inner_->Configure(config); }
+  void Start(FrameCallback on_frame, EndCallback on_end) override {
+    injected_ = 0;
+    inner_->Start(
+        [this, on_frame](hal::Frame frame) {
+          if (stalled_) return;
+          const int n = drop_every_;
+          if (n > 0 && (frame.sequence() + 1) % n == 0) {
+            ++injected_;
+            return;
+          }
+          on_frame(std::move(frame));
+        },
+        std::move(on_end));
+  }
+  void Stop() override { inner_->Stop(); }
+  bool streaming() const override { return inner_->streaming(); }
+  uint64_t dropped() const override { return inner_->dropped() + injected_; }
+  const hal::CameraConfig& config() const override { return inner_->config(); }
+
+  void SetStalled(bool stalled) { stalled_ = stalled; }
+  void SetDropEveryNth(int n) { drop_every_ = n; }
+
+ private:
+  std::unique_ptr<hal::Camera> inner_;
+  std::atomic<bool> stalled_{false};
+  std::atomic<int> drop_every_{0};
+  std::atomic<uint64_t> injected_{0};
+};
+
+bool Eventually(const std::function<bool()>& condition, milliseconds deadline = seconds(15)) {
+  const auto end = std::chrono::steady_clock::now() + deadline;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(milliseconds(1));
+  }
+  return true;
+}
+
+class SequencerTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/sequencer_test.XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    const fs::path frames = dir_ / "frames";
+    fs::create_directories(frames);
+    for (int k = 0; k < kFiles; ++k) {
+      std::vector<uint8_t> pixels(kWidth * kHeight);
+      for (int v = 0; v < kHeight; ++v) {
+        const double d = (v - StripeRow(k)) / 1.2;
+        const auto level = static_cast<uint8_t>(std::lround(20.0 + 180.0 * std::exp(-0.5 * d * d)));
+        std::fill_n(pixels.begin() + v * kWidth, kWidth, level);
+      }
+      char name[32];
+      std::snprintf(name, sizeof name, "%03d.pgm", k);
+      hal::WritePgm(frames / name, kWidth, kHeight, pixels.data());
+    }
+
+    sim_ = virtual_cabinet::DriveSim::ServeTcp({});
+    hal::ModbusDriveConfig modbus;
+    modbus.host = "127.0.0.1";
+    modbus.port = sim_->port();
+    drive_ = std::make_unique<hal::ModbusSlideDrive>(modbus);
+
+    hal::GpioConfig gpio;
+    gpio.backend = hal::GpioBackend::kVirtual;
+    gpio.lasers = {{17, false}, {27, false}, {22, false}};
+    gpio.led = {23, false};
+    gpio.button = {24, true};
+    gpio.debounce_ms = 5;
+    hal::GpioLines lines = hal::MakeGpioLines(gpio, hal::GpioBackend::kVirtual);
+    for (auto& laser : lines.lasers) {
+      laser_lines_.push_back(dynamic_cast<hal::VirtualGpioLine*>(laser.line.get()));
+    }
+    button_line_ = dynamic_cast<hal::VirtualGpioLine*>(lines.button.line.get());
+    gpio_ = hal::MakeGpioDevices(gpio, std::move(lines));
+
+    for (int i = 0; i < 2; ++i) {
+      auto camera = std::make_unique<FaultyCamera>(
+          std::make_unique<hal::ReplayCamera>(hal::ReplayOptions{frames, true}));
+      hal::CameraConfig config;
+      config.width = kWidth;
+      config.height = kHeight;
+      config.fps = 30;
+      config.exposure_us = 5000;
+      camera->Configure(config);
+      cameras_.push_back(std::move(camera));
+    }
+    store_ = store::ScanStore::Open(dir_ / "data");
+
+    options_.board = "test";
+    options_.device = "test-device";
+    options_.firmware_version = "0.0-test";
+    options_.data_dir = dir_ / "data";
+    options_.sweep_start_mm = kSweepStart;
+    options_.sweep_end_mm = kSweepEnd;
+    options_.speed_mm_s = kSpeed;
+    options_.home_timeout_s = 5;
+    options_.supervisor.max_laser_on_s = 5;
+  }
+
+  void TearDown() override {
+    sequencer_.reset();
+    sim_->SetResponding(true);
+    cameras_.clear();
+    gpio_ = {};
+    drive_.reset();
+    sim_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  void MakeSequencer() {
+    SequencerDevices devices;
+    devices.cameras = {{"upper", cameras_[0].get()}, {"lower", cameras_[1].get()}};
+    devices.lasers = gpio_.lasers.get();
+    devices.led = gpio_.led.get();
+    devices.button = gpio_.button.get();
+    devices.drive = drive_.get();
+    sequencer_ = std::make_unique<Sequencer>(devices, *store_, options_);
+    sequencer_->Subscribe([this](const ScanEvent& event) {
+      std::lock_guard lock(events_mutex_);
+      events_.push_back(event);
+    });
+  }
+
+  bool WaitState(SequencerState state, milliseconds deadline = seconds(15)) {
+    return Eventually([&] { return sequencer_->Status().state == state; }, deadline);
+  }
+  // Sweeping with the slide at least `mm` past the start.
+  bool WaitSweptPast(double mm) {
+    return Eventually([&] {
+      const ScanStatus s = sequencer_->Status();
+      return s.state == SequencerState::kSweeping && s.position_mm > kSweepStart + mm;
+    });
+  }
+  bool LasersLow() const {
+    for (const auto* line : laser_lines_) {
+      if (line->driven()) return false;
+    }
+    return true;
+  }
+  bool LasersWereOn() const {
+    for (const auto* line : laser_lines_) {
+      const std::vector<bool> h = line->history();
+      if (std::find(h.begin(), h.end(), true) == h.end()) return false;
+    }
+    return true;
+  }
+  int64_t LasersOffNs() const {
+    int64_t last = 0;
+    for (const auto* line : laser_lines_) last = std::max(last, line->last_change_ns());
+    return last;
+  }
+  void PressButton() {
+    // Active-low: pressed pulls the line low; held 30 ms, then released. The level before
+    // must have been stable for the debounce time, or the press counts as bounce.
+    std::this_thread::sleep_for(milliseconds(20));
+    button_line_->InjectEdge(hal::SteadyNowNs(), false);
+    std::this_thread::sleep_for(milliseconds(30));
+    button_line_->InjectEdge(hal::SteadyNowNs(), true);
+  }
+  std::vector<SequencerState> States() {
+    std::lock_guard lock(events_mutex_);
+    std::vector<SequencerState> states;
+    for (const ScanEvent& e : events_) {
+      if (e.type == ScanEvent::Type::kState) states.push_back(e.status.state);
+    }
+    return states;
+  }
+  // The archive's footer and the store's metadata agree on how the scan ended.
+  ScanArchive ExpectStored(const std::string& id, store::ScanState state,
+                           const std::string& footer_status) {
+    const store::ScanInfo info = store_->Get(id);
+    EXPECT_EQ(info.state, state) << store::ScanStateName(info.state) << ": " << info.reason;
+    ScanArchive archive = ReadScanFile(store_->Path(id));
+    EXPECT_EQ(archive.header.value("scan_id", ""), id);
+    if (!footer_status.empty()) {
+      EXPECT_TRUE(archive.report.complete) << archive.report.message;
+      EXPECT_TRUE(archive.footer.has_value());
+      if (archive.footer) {
+        EXPECT_EQ((*archive.footer)["status"], footer_status);
+      }
+    }
+    return archive;
+  }
+
+  fs::path dir_;
+  std::unique_ptr<virtual_cabinet::DriveSim> sim_;
+  std::unique_ptr<hal::ModbusSlideDrive> drive_;
+  std::vector<hal::VirtualGpioLine*> laser_lines_;
+  hal::VirtualGpioLine* button_line_ = nullptr;
+  hal::GpioDevices gpio_;
+  std::vector<std::unique_ptr<FaultyCamera>> cameras_;
+  std::unique_ptr<store::ScanStore> store_;
+  SequencerOptions options_;
+  std::unique_ptr<Sequencer> sequencer_;
+  std::mutex events_mutex_;
+  std::vector<ScanEvent> events_;
+};
+
+TEST_F(SequencerTest, CompleteScanStoresEveryFramesPeaks) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  EXPECT_TRUE(store::IsValidScanId(id));
+  ASSERT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+  EXPECT_TRUE(LasersLow());
+  EXPECT_TRUE(LasersWereOn());
+  EXPECT_EQ(sequencer_->Status().scan_id, id);
+  EXPECT_EQ(sequencer_->Status().dropped, 0u);
+
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kComplete, "complete");
+  EXPECT_EQ(archive.header["origin"], "test");
+  EXPECT_EQ(archive.header["board"], "test");
+  EXPECT_EQ(archive.header["cameras"].size(), 2u);
+  EXPECT_TRUE(archive.header["calibration_hash"].is_null());
+  const nlohmann::json& footer = *archive.footer;
+  EXPECT_EQ(footer["dropped"], 0);
+
+  // Every frame: its camera's next sequence number (nothing lost), lasers on, one peak per
+  // column on the stripe row of the file it replays, and a position on the sweep.
+  std::map<int, std::vector<const FrameRecord*>> by_camera;
+  for (const FrameRecord& f : archive.frames) by_camera[f.camera].push_back(&f);
+  ASSERT_EQ(by_camera.size(), 2u);
+  const double sweep_s = (kSweepEnd - kSweepStart) / kSpeed;
+  for (auto& [camera, frames] : by_camera) {
+    std::sort(frames.begin(), frames.end(),
+              [](auto* a, auto* b) { return a->sequence < b->sequence; });
+    EXPECT_EQ(footer["frames"][camera], frames.size());
+    EXPECT_GE(frames.size(), static_cast<size_t>(0.8 * sweep_s * 30)) << "camera " << camera;
+    EXPECT_LE(frames.size(), static_cast<size_t>(1.5 * sweep_s * 30 + 10)) << "camera " << camera;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const FrameRecord& f = *frames[i];
+      if (i > 0) {
+        EXPECT_EQ(f.sequence, frames[i - 1]->sequence + 1);
+        EXPECT_GE(f.slide_position_mm, frames[i - 1]->slide_position_mm - 1e-6);
+        EXPECT_GT(f.timestamp_ns, frames[i - 1]->timestamp_ns);
+      }
+      EXPECT_TRUE(f.lasers_on);
+      EXPECT_GE(f.slide_position_mm, kSweepStart - 1.0);
+      EXPECT_LE(f.slide_position_mm, kSweepEnd + 1.0);
+      ASSERT_EQ(f.peaks.size(), static_cast<size_t>(kWidth)) << "sequence " << f.sequence;
+      for (const Peak& p : f.peaks) EXPECT_NEAR(p.v, StripeRow(f.sequence), 0.1);
+    }
+    // The sweep was covered: from near its start to near its end.
+    EXPECT_LT(frames.front()->slide_position_mm, kSweepStart + 20.0);
+    EXPECT_GT(frames.back()->slide_position_mm, kSweepEnd - 20.0);
+  }
+  EXPECT_EQ(footer["peaks"], archive.frames.size() * kWidth);
+
+  const std::vector<SequencerState> expected = {SequencerState::kHoming, SequencerState::kArming,
+                                                SequencerState::kSweeping,
+                                                SequencerState::kFinishing, SequencerState::kDone};
+  EXPECT_EQ(States(), expected);
+  std::lock_guard lock(events_mutex_);
+  EXPECT_TRUE(std::any_of(events_.begin(), events_.end(), [](const ScanEvent& e) {
+    return e.type == ScanEvent::Type::kProgress && e.status.progress > 0.0;
+  }));
+}
+
+TEST_F(SequencerTest, ButtonStartsAScanAndAPressDuringItAborts) {
+  MakeSequencer();
+  PressButton();
+  ASSERT_TRUE(WaitSweptPast(30.0));
+  const std::string id = sequencer_->Status().scan_id;
+  const int64_t press_ns = hal::SteadyNowNs();
+  PressButton();
+  ASSERT_TRUE(WaitState(SequencerState::kAborted));
+  EXPECT_TRUE(LasersLow());
+  // The press is confirmed after the 5 ms debounce; the lines go low within 50 ms of it.
+  EXPECT_LE(LasersOffNs() - press_ns, 55 * kMs);
+  EXPECT_NE(sequencer_->Status().reason.find("button"), std::string::npos);
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kAborted, "aborted");
+  EXPECT_EQ(archive.header["origin"], "button");
+  EXPECT_GT(archive.frames.size(), 0u);
+  // The next press starts a new scan.
+  PressButton();
+  ASSERT_TRUE(WaitState(SequencerState::kDone));
+  EXPECT_NE(sequencer_->Status().scan_id, id);
+  EXPECT_TRUE(LasersLow());
+}
+
+TEST_F(SequencerTest, DriveFaultMidSweepTripsWithin50ms) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitSweptPast(30.0));
+  const int64_t fault_ns = hal::SteadyNowNs();
+  sim_->InjectFault(0x42);
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_TRUE(LasersLow());
+  const int64_t off_ms = (LasersOffNs() - fault_ns) / kMs;
+  EXPECT_LE(off_ms, 50);
+  std::printf("drive fault -> lasers off: %.1f ms\n", (LasersOffNs() - fault_ns) * 1e-6);
+  EXPECT_EQ(sequencer_->Status().reason, "drive fault 66");
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
+  EXPECT_EQ((*archive.footer)["reason"], "drive fault 66");
+  EXPECT_GT(archive.frames.size(), 0u);
+  EXPECT_FALSE(sim_->State().model.moving);
+  // The next start clears the latched fault and scans.
+  sequencer_->StartScan("test");
+  EXPECT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+}
+
+TEST_F(SequencerTest, DriveNotAnsweringTrips) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitSweptPast(30.0));
+  const int64_t silent_ns = hal::SteadyNowNs();
+  sim_->SetResponding(false);
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_TRUE(LasersLow());
+  // Silence is only known after drive_stale (150 ms); then the lines go low at once.
+  const int64_t off_ns = LasersOffNs() - silent_ns;
+  std::printf("drive silent -> lasers off: %.1f ms\n", off_ns * 1e-6);
+  EXPECT_LE(off_ns, options_.supervisor.drive_stale.count() + 50 * kMs);
+  const std::optional<Trip> trip = sequencer_->last_trip();
+  ASSERT_TRUE(trip.has_value());
+  EXPECT_LE(trip->safe_ns - trip->detected_ns, 50 * kMs);
+  EXPECT_NE(sequencer_->Status().reason.find("drive not answering"), std::string::npos);
+  ExpectStored(id, store::ScanState::kFault, "fault");
+}
+
+TEST_F(SequencerTest, DriveSilentWhileHomingFaultsWithoutLaserLight) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(Eventually([&] { return sim_->State().model.homing; }));
+  sim_->SetResponding(false);
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_NE(sequencer_->Status().reason.find("drive not answering"), std::string::npos)
+      << sequencer_->Status().reason;
+  EXPECT_TRUE(LasersLow());
+  for (const auto* line : laser_lines_) {
+    const std::vector<bool> h = line->history();
+    EXPECT_EQ(std::count(h.begin(), h.end(), true), 0) << line->name();
+  }
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
+  EXPECT_TRUE(archive.frames.empty());
+}
+
+TEST_F(SequencerTest, CameraStallTrips) {
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitSweptPast(30.0));
+  const int64_t stall_ns = hal::SteadyNowNs();
+  cameras_[1]->SetStalled(true);
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_TRUE(LasersLow());
+  const int64_t off_ns = LasersOffNs() - stall_ns;
+  std::printf("camera stall -> lasers off: %.1f ms\n", off_ns * 1e-6);
+  EXPECT_LE(off_ns, options_.supervisor.camera_stall.count() + 50 * kMs);
+  const std::optional<Trip> trip = sequencer_->last_trip();
+  ASSERT_TRUE(trip.has_value());
+  EXPECT_LE(trip->safe_ns - trip->detected_ns, 50 * kMs);
+  EXPECT_NE(sequencer_->Status().reason.find("camera lower stalled"), std::string::npos);
+  ExpectStored(id, store::ScanState::kFault, "fault");
+}
+
+TEST_F(SequencerTest, DroppedFramesAreCountedAndTheScanCompletes) {
+  cameras_[0]->SetDropEveryNth(4);
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+  EXPECT_TRUE(LasersLow());
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kComplete, "complete");
+  std::vector<uint32_t> sequences;
+  for (const FrameRecord& f : archive.frames) {
+    if (f.camera == 0) sequences.push_back(f.sequence);
+  }
+  std::sort(sequences.begin(), sequences.end());
+  ASSERT_GT(sequences.size(), 10u);
+  const uint64_t gaps = sequences.back() - sequences.front() + 1 - sequences.size();
+  const uint64_t counted = (*archive.footer)["camera_dropped"][0];
+  // Every gap is counted; a drop just before the first or after the last stored frame
+  // counts without leaving a gap.
+  EXPECT_GE(counted, gaps);
+  EXPECT_LE(counted, gaps + 2);
+  EXPECT_GE(gaps, sequences.size() / 3 - 1);
+  EXPECT_EQ((*archive.footer)["camera_dropped"][1], 0);
+  EXPECT_EQ(sequencer_->Status().dropped, counted);
+}
+
+TEST_F(SequencerTest, MaxLaserOnTimeTrips) {
+  options_.supervisor.max_laser_on_s = 0.3;
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kFault));
+  EXPECT_TRUE(LasersLow());
+  int64_t sweeping_ns = 0;
+  {
+    std::lock_guard lock(events_mutex_);
+    for (const ScanEvent& e : events_) {
+      if (e.type == ScanEvent::Type::kState && e.status.state == SequencerState::kSweeping) {
+        sweeping_ns = e.status.updated_ns;
+      }
+    }
+  }
+  ASSERT_GT(sweeping_ns, 0);
+  EXPECT_LE(LasersOffNs() - sweeping_ns, 350 * kMs);
+  // (The lasers go on just before the state changes to sweeping.)
+  EXPECT_GE(LasersOffNs() - sweeping_ns, 280 * kMs);
+  EXPECT_NE(sequencer_->Status().reason.find("max_laser_on_s"), std::string::npos);
+  ExpectStored(id, store::ScanState::kFault, "fault");
+}
+
+TEST_F(SequencerTest, ApiAbortAndBusy) {
+  MakeSequencer();
+  sequencer_->Abort("nothing to abort");  // a no-op while idle
+  EXPECT_EQ(sequencer_->Status().state, SequencerState::kIdle);
+  const std::string id = sequencer_->StartScan("api");
+  try {
+    sequencer_->StartScan("api");
+    ADD_FAILURE() << "a second start while scanning must be refused";
+  } catch (const ScanControlError& e) {
+    EXPECT_EQ(e.kind(), ScanControlError::Kind::kBusy);
+  }
+  ASSERT_TRUE(WaitSweptPast(10.0));
+  sequencer_->Abort("operator stop");
+  ASSERT_TRUE(WaitState(SequencerState::kAborted));
+  EXPECT_TRUE(LasersLow());
+  EXPECT_EQ(sequencer_->Status().reason, "operator stop");
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kAborted, "aborted");
+  EXPECT_EQ((*archive.footer)["reason"], "operator stop");
+}
+
+TEST_F(SequencerTest, DiskFullIsACleanFaultAndKeepsEarlierScans) {
+  MakeSequencer();
+  const std::string first = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kDone));
+  const size_t first_frames = ReadScanFile(store_->Path(first)).frames.size();
+
+  // A file size limit makes writes past 48 KiB fail with EFBIG, as a full disk would
+  // with ENOSPC (SIGXFSZ ignored so the write returns the error).
+  std::signal(SIGXFSZ, SIG_IGN);
+  rlimit old_limit{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  rlimit limit = old_limit;
+  limit.rlim_cur = 48 * 1024;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  const std::string second = sequencer_->StartScan("test");
+  const bool faulted = WaitState(SequencerState::kFault);
+  setrlimit(RLIMIT_FSIZE, &old_limit);
+  ASSERT_TRUE(faulted) << sequencer_->Status().reason;
+  EXPECT_TRUE(LasersLow());
+  EXPECT_NE(sequencer_->Status().reason.find("scan store"), std::string::npos);
+  EXPECT_FALSE(sim_->State().model.moving);
+
+  // The earlier scan is intact; the failed one is kept as a readable prefix.
+  const ScanArchive kept = ExpectStored(first, store::ScanState::kComplete, "complete");
+  EXPECT_EQ(kept.frames.size(), first_frames);
+  const store::ScanInfo info = store_->Get(second);
+  EXPECT_EQ(info.state, store::ScanState::kPartial) << info.reason;
+  const ScanArchive prefix = ReadScanFile(store_->Path(second));
+  EXPECT_GT(prefix.frames.size(), 0u);
+  EXPECT_FALSE(prefix.report.complete);
+}
+
+TEST_F(SequencerTest, CaptureWhileIdle) {
+  MakeSequencer();
+  const CapturedFrame frame = sequencer_->Capture("lower", true);
+  EXPECT_EQ(frame.camera, "lower");
+  EXPECT_TRUE(frame.lasers_on);
+  ASSERT_EQ(frame.width, kWidth);
+  ASSERT_EQ(frame.height, kHeight);
+  ASSERT_EQ(frame.pixels.size(), static_cast<size_t>(kWidth * kHeight));
+  // One of the replayed files: its brightest row is a stripe row.
+  int brightest = 0;
+  for (int v = 0; v < kHeight; ++v) {
+    if (frame.pixels[v * kWidth] > frame.pixels[brightest * kWidth]) brightest = v;
+  }
+  EXPECT_EQ((brightest - 30) % 5, 0);
+  EXPECT_TRUE(LasersLow());
+  EXPECT_TRUE(LasersWereOn());
+  try {
+    sequencer_->Capture("side", false);
+    ADD_FAILURE() << "an unknown camera must be refused";
+  } catch (const ScanControlError& e) {
+    EXPECT_EQ(e.kind(), ScanControlError::Kind::kInvalidArgument);
+  }
+}
+
+}  // namespace
+}  // namespace mirrorscan::scan

@@ -1,0 +1,332 @@
+// mirrorscand as a process: a virtual scan from the start hook and from a (SIGUSR1)
+// button press, SIGTERM and SIGKILL mid-sweep, and a full disk (RLIMIT_FSIZE). The
+// crash tests use replay cameras (fast start-up); the scans use the rendered cabinet.
+
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/scan_format/scan_format.h"
+#include "firmware/hal/replay/replay_camera.h"
+#include "firmware/store/scan_store.h"
+
+namespace mirrorscan {
+namespace {
+
+namespace fs = std::filesystem;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
+
+class Daemon {
+ public:
+  // Starts mirrorscand with `args`, output to `log`; a file size limit when fsize_limit > 0.
+  Daemon(const std::vector<std::string>& args, const fs::path& log, rlim_t fsize_limit = 0,
+         const std::vector<std::pair<std::string, std::string>>& env = {})
+      : log_(log) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      for (const auto& [name, value] : env) setenv(name.c_str(), value.c_str(), 1);
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      dup2(fd, 1);
+      dup2(fd, 2);
+      if (fsize_limit > 0) {
+        signal(SIGXFSZ, SIG_IGN);  // writes past the limit then fail with EFBIG
+        rlimit limit{fsize_limit, fsize_limit};
+        setrlimit(RLIMIT_FSIZE, &limit);
+      }
+      std::vector<char*> argv;
+      std::string binary = MIRRORSCAND_PATH;
+      argv.push_back(binary.data());
+      std::vector<std::string> copy = args;
+      for (std::string& a : copy) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      execv(binary.c_str(), argv.data());
+      _exit(127);
+    }
+  }
+  ~Daemon() {
+    if (pid_ > 0 && !exit_code_) {
+      kill(pid_, SIGKILL);
+      waitpid(pid_, nullptr, 0);
+    }
+  }
+  std::string Log() const {
+    std::ifstream in(log_);
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }
+  bool WaitLog(const std::string& text, milliseconds deadline = seconds(60)) {
+    const auto end = std::chrono::steady_clock::now() + deadline;
+    while (Log().find(text) == std::string::npos) {
+      if (std::chrono::steady_clock::now() > end || Exited()) return false;
+      std::this_thread::sleep_for(milliseconds(10));
+    }
+    return true;
+  }
+  bool Exited() {
+    if (exit_code_) return true;
+    int status = 0;
+    if (waitpid(pid_, &status, WNOHANG) == pid_) {
+      exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+      return true;
+    }
+    return false;
+  }
+  // The exit code (128 + signal if killed), or -1 after the deadline.
+  int Wait(milliseconds deadline = seconds(60)) {
+    const auto end = std::chrono::steady_clock::now() + deadline;
+    while (!Exited()) {
+      if (std::chrono::steady_clock::now() > end) return -1;
+      std::this_thread::sleep_for(milliseconds(10));
+    }
+    return *exit_code_;
+  }
+  void Signal(int signal) { kill(pid_, signal); }
+
+ private:
+  fs::path log_;
+  pid_t pid_ = -1;
+  std::optional<int> exit_code_;
+};
+
+class MirrorscandTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char pattern[] = "/tmp/mirrorscand_test.XXXXXX";
+    ASSERT_NE(mkdtemp(pattern), nullptr);
+    dir_ = pattern;
+    data_ = dir_ / "data";
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  // The virtual board with a 300 mm sweep (2 s) and, if `replay`, replay cameras playing a
+  // 160 x 120 stripe instead of the renderer.
+  fs::path WriteBoard(bool replay, double sweep_end_mm = 500.0) {
+    nlohmann::json board;
+    std::ifstream(kSource / "boards" / "virtual" / "board.json") >> board;
+    board["scan"]["sweep_start_mm"] = 200;
+    board["scan"]["sweep_end_mm"] = sweep_end_mm;
+    board["virtual"]["scene"] =
+        (kSource / "boards" / "virtual" / "scenes" / "mannequin.json").string();
+    if (replay) {
+      for (int c = 0; c < 2; ++c) {
+        const fs::path frames = dir_ / ("frames" + std::to_string(c));
+        fs::create_directories(frames);
+        std::vector<uint8_t> pixels(160 * 120);
+        for (int v = 0; v < 120; ++v) {
+          const double d = (v - 60.0) / 1.2;
+          std::fill_n(pixels.begin() + v * 160, 160,
+                      static_cast<uint8_t>(20 + 180 * std::exp(-0.5 * d * d)));
+        }
+        hal::WritePgm(frames / "0.pgm", 160, 120, pixels.data());
+        auto& camera = board["cameras"][c];
+        camera.erase("id");
+        camera["backend"] = "replay";
+        camera["path"] = frames.string();
+        camera["width"] = 160;
+        camera["height"] = 120;
+      }
+    }
+    const fs::path file = dir_ / "board.json";
+    std::ofstream(file) << board.dump(2);
+    return file;
+  }
+  std::vector<std::string> Args(const fs::path& board) {
+    return {"--board", board.string(), "--data-dir", data_.string()};
+  }
+  std::vector<store::ScanInfo> Scans() {
+    return store::ScanStore::Open(data_)->List();  // Open also recovers what a crash left
+  }
+
+  fs::path dir_, data_;
+};
+
+TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
+  std::vector<std::string> args = Args(WriteBoard(false));
+  args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
+  Daemon daemon(args, dir_ / "log");
+  ASSERT_EQ(daemon.Wait(seconds(90)), 0) << daemon.Log();
+  EXPECT_NE(daemon.Log().find("lasers off"), std::string::npos);
+  const std::vector<store::ScanInfo> scans = Scans();
+  ASSERT_EQ(scans.size(), 1u);
+  EXPECT_EQ(scans[0].state, store::ScanState::kComplete);
+  const ScanArchive archive = ReadScanFile(data_ / (scans[0].id + ".mscan"));
+  ASSERT_TRUE(archive.report.complete) << archive.report.message;
+  EXPECT_EQ(archive.header["board"], "virtual");
+  EXPECT_EQ(archive.header["origin"], "test");
+  // 30 fps x 2 cameras for the 2 s sweep, nothing dropped.
+  EXPECT_EQ((*archive.footer)["dropped"], 0) << archive.footer->dump();
+  for (int camera = 0; camera < 2; ++camera) {
+    size_t frames = 0, with_peaks = 0;
+    for (const FrameRecord& f : archive.frames) {
+      if (f.camera != camera) continue;
+      ++frames;
+      if (!f.peaks.empty()) ++with_peaks;
+      EXPECT_TRUE(f.lasers_on);
+      EXPECT_GE(f.slide_position_mm, 199.0);
+      EXPECT_LE(f.slide_position_mm, 501.0);
+    }
+    EXPECT_GE(frames, 54u) << "camera " << camera;
+    EXPECT_EQ((*archive.footer)["frames"][camera], frames);
+    // The lasers cross the mannequin and the panels in every frame of the sweep.
+    EXPECT_EQ(with_peaks, frames) << "camera " << camera;
+  }
+}
+
+TEST_F(MirrorscandTest, Sigusr1PressesTheVirtualButton) {
+  std::vector<std::string> args = Args(WriteBoard(false));
+  args.push_back("--exit-after-scan");
+  Daemon daemon(args, dir_ / "log");
+  ASSERT_TRUE(daemon.WaitLog("ready")) << daemon.Log();
+  daemon.Signal(SIGUSR1);
+  ASSERT_EQ(daemon.Wait(seconds(60)), 0) << daemon.Log();
+  const std::vector<store::ScanInfo> scans = Scans();
+  ASSERT_EQ(scans.size(), 1u);
+  EXPECT_EQ(scans[0].state, store::ScanState::kComplete);
+  EXPECT_EQ(scans[0].header["origin"], "button");
+}
+
+TEST_F(MirrorscandTest, SigtermMidSweepAbortsTheScan) {
+  std::vector<std::string> args = Args(WriteBoard(true));
+  args.push_back("--scan-on-start");
+  Daemon daemon(args, dir_ / "log");
+  ASSERT_TRUE(daemon.WaitLog("sweeping")) << daemon.Log();
+  std::this_thread::sleep_for(milliseconds(300));
+  daemon.Signal(SIGTERM);
+  ASSERT_EQ(daemon.Wait(), 0) << daemon.Log();
+  EXPECT_NE(daemon.Log().find("lasers off"), std::string::npos);
+  const std::vector<store::ScanInfo> scans = Scans();
+  ASSERT_EQ(scans.size(), 1u);
+  EXPECT_EQ(scans[0].state, store::ScanState::kAborted);
+  EXPECT_EQ(scans[0].reason, "SIGTERM");
+  EXPECT_GT(scans[0].frames, 0u);
+}
+
+TEST_F(MirrorscandTest, SigkillMidSweepKeepsEarlierScansAndAReadablePrefix) {
+  const fs::path board = WriteBoard(true);
+  std::vector<std::string> args = Args(board);
+  args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
+  {
+    Daemon first(args, dir_ / "log1");
+    ASSERT_EQ(first.Wait(), 0) << first.Log();
+  }
+  const std::vector<store::ScanInfo> before = Scans();
+  ASSERT_EQ(before.size(), 1u);
+  {
+    Daemon killed(args, dir_ / "log2");
+    ASSERT_TRUE(killed.WaitLog("sweeping")) << killed.Log();
+    std::this_thread::sleep_for(milliseconds(700));
+    killed.Signal(SIGKILL);
+    ASSERT_EQ(killed.Wait(), 128 + SIGKILL);
+  }
+  // A restart finds both: the earlier one intact, the killed one partial.
+  {
+    Daemon restarted(Args(board), dir_ / "log3");
+    ASSERT_TRUE(restarted.WaitLog("ready")) << restarted.Log();
+    restarted.Signal(SIGTERM);
+    ASSERT_EQ(restarted.Wait(), 0) << restarted.Log();
+  }
+  const std::vector<store::ScanInfo> after = Scans();
+  ASSERT_EQ(after.size(), 2u);
+  const store::ScanInfo& killed = after[0];  // newest first
+  const store::ScanInfo& earlier = after[1];
+  EXPECT_EQ(earlier.id, before[0].id);
+  EXPECT_EQ(earlier.state, store::ScanState::kComplete);
+  EXPECT_EQ(earlier.frames, before[0].frames);
+  EXPECT_TRUE(ReadScanFile(data_ / (earlier.id + ".mscan")).report.complete);
+  EXPECT_EQ(killed.state, store::ScanState::kPartial) << killed.reason;
+  const ScanArchive prefix = ReadScanFile(data_ / (killed.id + ".mscan.partial"));
+  EXPECT_FALSE(prefix.report.complete);
+  EXPECT_GT(prefix.frames.size(), 10u) << prefix.report.message;
+  EXPECT_EQ(prefix.header["scan_id"], killed.id);
+}
+
+TEST_F(MirrorscandTest, DiskFullIsACleanFault) {
+  const fs::path board = WriteBoard(true);
+  std::vector<std::string> args = Args(board);
+  args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
+  {
+    Daemon first(args, dir_ / "log1");
+    ASSERT_EQ(first.Wait(), 0) << first.Log();
+  }
+  const std::vector<store::ScanInfo> before = Scans();
+  ASSERT_EQ(before.size(), 1u);
+  Daemon full(args, dir_ / "log2", 64 * 1024);
+  ASSERT_EQ(full.Wait(), 1) << full.Log();  // the scan ended in a fault
+  const std::string log = full.Log();
+  EXPECT_NE(log.find("scan store"), std::string::npos) << log;
+  EXPECT_NE(log.find("lasers off"), std::string::npos) << log;
+  const std::vector<store::ScanInfo> after = Scans();
+  ASSERT_EQ(after.size(), 2u);
+  EXPECT_EQ(after[1].id, before[0].id);
+  EXPECT_EQ(after[1].state, store::ScanState::kComplete);
+  EXPECT_EQ(after[1].frames, before[0].frames);
+  EXPECT_EQ(after[0].state, store::ScanState::kPartial);
+  EXPECT_GT(ReadScanFile(data_ / (after[0].id + ".mscan.partial")).frames.size(), 0u);
+}
+
+TEST_F(MirrorscandTest, NotifiesSystemdReadyWatchdogAndStopping) {
+  const fs::path socket_path = dir_ / "notify";
+  const int fd = socket(AF_UNIX, SOCK_DGRAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un address{};
+  address.sun_family = AF_UNIX;
+  std::strncpy(address.sun_path, socket_path.c_str(), sizeof(address.sun_path) - 1);
+  ASSERT_EQ(bind(fd, reinterpret_cast<const sockaddr*>(&address), sizeof address), 0);
+  timeval timeout{0, 100000};
+  setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+  Daemon daemon(Args(WriteBoard(true)), dir_ / "log", 0,
+                {{"NOTIFY_SOCKET", socket_path.string()}, {"WATCHDOG_USEC", "200000"}});
+  std::vector<std::string> messages;
+  const auto end = std::chrono::steady_clock::now() + seconds(30);
+  auto count = [&](const std::string& m) {
+    return std::count(messages.begin(), messages.end(), m);
+  };
+  while (std::chrono::steady_clock::now() < end && count("STOPPING=1") == 0) {
+    char buffer[256];
+    const ssize_t n = recv(fd, buffer, sizeof buffer, 0);
+    if (n > 0) messages.emplace_back(buffer, static_cast<size_t>(n));
+    if (count("WATCHDOG=1") == 3) daemon.Signal(SIGTERM);
+  }
+  close(fd);
+  EXPECT_EQ(daemon.Wait(), 0) << daemon.Log();
+  ASSERT_FALSE(messages.empty());
+  EXPECT_EQ(messages.front(), "READY=1");
+  EXPECT_GE(count("WATCHDOG=1"), 3);
+  EXPECT_EQ(count("STOPPING=1"), 1);
+}
+
+TEST_F(MirrorscandTest, BadInputGetsOneLineAndItsExitCode) {
+  Daemon no_args({"--board"}, dir_ / "log1");
+  EXPECT_EQ(no_args.Wait(), 2);
+  EXPECT_NE(no_args.Log().find("--board needs a value"), std::string::npos);
+  Daemon missing({"--board", (dir_ / "none.json").string(), "--data-dir", data_.string()},
+                 dir_ / "log2");
+  EXPECT_EQ(missing.Wait(), 2);
+  EXPECT_NE(missing.Log().find("none.json"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace mirrorscan
