@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/config/calibration.h"
 #include "common/peaks/peaks.h"
 #include "common/scan_format/scan_format.h"
 
@@ -100,6 +101,55 @@ TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
   }
   EXPECT_EQ(n, expected.size());
   EXPECT_GT(n, 500u);
+  fs::remove_all(dir);
+}
+
+TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
+  const fs::path dir = TempDir("calibrate");
+  Result r = RunMirrorscan("sim render --no-lasers --scene " + Scene("calibration") + " --out " +
+                           dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const std::string board = std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/board.json";
+  std::string upper, lower;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("upper_frame", 0) == 0) upper = entry.path().string();
+    if (name.rfind("lower_frame", 0) == 0) lower = entry.path().string();
+  }
+  ASSERT_FALSE(upper.empty());
+  ASSERT_FALSE(lower.empty());
+  const std::string images = " --image upper=" + upper + " --image lower=" + lower;
+
+  const fs::path out = dir / "cal.json";
+  r = RunMirrorscan("calibrate" + images + " --board " + board + " --out " + out.string() +
+                    " --report " + (dir / "report").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const Calibration calibration = Calibration::Load(out);
+  EXPECT_EQ(calibration.cameras.size(), 2u);
+  EXPECT_LE(calibration.residuals.reprojection_rms_px, 0.15);
+  EXPECT_TRUE(fs::exists(dir / "report.json"));
+  EXPECT_TRUE(fs::exists(dir / "report-upper.png"));
+  EXPECT_TRUE(fs::exists(dir / "report-lower.png"));
+
+  r = RunMirrorscan("calibrate --image upper=" + upper + " --board " + board + " --verify " +
+                    out.string() + " --json");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"ok\": true"), std::string::npos) << r.output;
+
+  // Limits no image can meet: a clear failure, and no calibration.json.
+  nlohmann::json strict = JsonReader::ParseFile(board);
+  strict["calibration"]["limits"]["max_rms_px"] = 0.001;
+  std::ofstream(dir / "strict.json") << strict.dump();
+  r = RunMirrorscan("calibrate" + images + " --board " + (dir / "strict.json").string() +
+                    " --out " + (dir / "strict-cal.json").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("camera upper, center view: markers lie"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("mirrorscan: calibration failed (see above); "), std::string::npos);
+  EXPECT_FALSE(fs::exists(dir / "strict-cal.json"));
+
+  r = RunMirrorscan("calibrate --image side=" + upper + " --board " + board + " --out x.json");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output, "mirrorscan: camera \"side\" is not in the board's cameras\n");
   fs::remove_all(dir);
 }
 

@@ -186,6 +186,13 @@ void PeakParams::Validate() const {
   if (roi.x < 0 || roi.y < 0 || roi.width < 0 || roi.height < 0) {
     Invalid("roi", "x, y, width, height must be >= 0");
   }
+  if (along_stripe_half_width < 0 || along_stripe_half_width > kMaxAlongStripeHalfWidth) {
+    Invalid("along_stripe_half_width",
+            "must be in [0, " + std::to_string(kMaxAlongStripeHalfWidth) + "]");
+  }
+  if (!(stripe_end_min_ratio >= 0 && stripe_end_min_ratio <= 1)) {
+    Invalid("stripe_end_min_ratio", "must be in [0, 1]");
+  }
   for (size_t i = 0; i < excluded.size(); ++i) {
     const PixelRect& e = excluded[i];
     if (e.x < 0 || e.y < 0 || e.width <= 0 || e.height <= 0) {
@@ -197,7 +204,8 @@ void PeakParams::Validate() const {
 PeakParams PeakParams::FromJson(const JsonReader& json) {
   json.AllowOnly({"estimator", "threshold_dn", "window", "min_width_px", "max_width_px",
                   "max_peaks_per_column", "min_separation_px", "saturation_level", "roi",
-                  "excluded"});
+                  "excluded", "along_stripe_half_width", "drop_isolated_peaks",
+                  "stripe_end_min_ratio"});
   PeakParams p;
   std::vector<std::string> names;
   for (const auto& n : kEstimatorNames) names.push_back(n.name);
@@ -229,6 +237,11 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
   if (json.Has("excluded")) {
     for (const JsonReader& r : json.Objects("excluded")) p.excluded.push_back(rect(r, true));
   }
+  p.along_stripe_half_width = json.Integer("along_stripe_half_width", p.along_stripe_half_width, 0,
+                                           kMaxAlongStripeHalfWidth);
+  p.drop_isolated_peaks = json.Bool("drop_isolated_peaks", p.drop_isolated_peaks);
+  p.stripe_end_min_ratio =
+      static_cast<float>(json.Number("stripe_end_min_ratio", p.stripe_end_min_ratio, 0, 1));
   try {
     p.Validate();
   } catch (const std::invalid_argument& e) {
@@ -405,6 +418,148 @@ bool ByStrength(const Peak& a, const Peak& b) {
   return ByRow(a, b);
 }
 
+// Along-stripe smoothing (peaks.h, along_stripe_half_width).
+constexpr float kLinkPx = 1.5f;   // A neighbour column's peak this close continues the stripe.
+constexpr float kKinkPx = 0.75f;  // Max |second difference| of three consecutive rows.
+
+// Savitzky-Golay weights of the centre of a quadratic through 2m + 1 equally spaced
+// samples: w_k = (3 (3m^2 + 3m - 1) - 15 k^2) / ((2m + 1)(4m^2 + 4m - 3)), k = 0 .. m.
+struct QuadraticKernels {
+  float w[kMaxAlongStripeHalfWidth + 1][kMaxAlongStripeHalfWidth + 1] = {};
+  constexpr QuadraticKernels() {
+    for (int m = 2; m <= kMaxAlongStripeHalfWidth; ++m) {
+      const float den = static_cast<float>((2 * m + 1) * (4 * m * m + 4 * m - 3));
+      for (int k = 0; k <= m; ++k) {
+        w[m][k] = static_cast<float>(3 * (3 * m * m + 3 * m - 1) - 15 * k * k) / den;
+      }
+    }
+  }
+};
+constexpr QuadraticKernels kQuadraticKernels;
+
+// The pass across columns (stage 3 of peaks.h). `peaks` sorted by (u, v); column c
+// (relative to the ROI at x0) holds [start[c], start[c + 1]); on return `peaks` and
+// `start` hold what is kept. Every decision reads the rows, widths and amplitudes of
+// stage 2 only, so the result does not depend on the order peaks are visited in.
+void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* start,
+                     std::vector<float>* rows, std::vector<int32_t>* links,
+                     std::vector<uint8_t>* dropped, std::vector<Peak>* peaks) {
+  const int half_width = params.along_stripe_half_width;
+  const float end_ratio = params.stripe_end_min_ratio;
+  if (half_width < 2 && !params.drop_isolated_peaks && !(end_ratio > 0)) return;
+  const size_t count = start[ncols];
+  Peak* p = peaks->data();
+  rows->resize(count);
+  for (size_t i = 0; i < count; ++i) (*rows)[i] = p[i].v;
+  const float* v = rows->data();
+  // links[2i] / links[2i + 1]: the peak in the column left / right of peak i nearest to
+  // its row, if their half-maximum extents overlap or they are within kLinkPx (so a steep
+  // stripe, wide in its column, still links), else -1. Following links walks the stripe.
+  links->resize(2 * count);
+  int32_t* link = links->data();
+  // Whether peak j is within `reach` times the link distance of peak i's row (reach 1 for
+  // the column beside it, 2 across a one-column gap).
+  auto within = [&](size_t i, uint32_t j, float reach) {
+    return std::abs(v[j] - v[i]) <= reach * std::max(kLinkPx, 0.5f * (p[i].width + p[j].width));
+  };
+  // The peak in column `col` nearest to peak i's row, if within reach, else -1.
+  auto nearest = [&](int col, size_t i, float reach) {
+    if (col < 0 || col >= ncols || start[col] == start[col + 1]) return int32_t{-1};
+    uint32_t best = start[col];
+    for (uint32_t j = best + 1; j < start[col + 1]; ++j)
+      if (std::abs(v[j] - v[i]) < std::abs(v[best] - v[i])) best = j;
+    return within(i, best, reach) ? static_cast<int32_t>(best) : int32_t{-1};
+  };
+  // Both columns are sorted by v: one merge-like walk per pair of columns finds the
+  // nearest peak for every peak of a column.
+  auto link_columns = [&](int from, int to, int side) {
+    uint32_t j = start[to];
+    const uint32_t end = start[to + 1];
+    for (uint32_t i = start[from]; i < start[from + 1]; ++i) {
+      int32_t& out = link[2 * i + side];
+      out = -1;
+      if (j == end) continue;
+      while (j + 1 < end && v[j + 1] <= v[i]) ++j;
+      uint32_t best = j;
+      if (j + 1 < end && std::abs(v[j + 1] - v[i]) < std::abs(v[j] - v[i])) best = j + 1;
+      if (within(i, best, 1)) out = static_cast<int32_t>(best);
+    }
+  };
+  for (int c = 0; c < ncols; ++c) {
+    for (uint32_t i = start[c]; i < start[c + 1]; ++i) link[2 * i] = link[2 * i + 1] = -1;
+    if (c > 0) link_columns(c, c - 1, 0);
+    if (c + 1 < ncols) link_columns(c, c + 1, 1);
+  }
+  // A stripe spans columns: a peak with no neighbour is no stripe (noise on an ambient
+  // edge, a speck), and a stripe's end column much dimmer than the column next to it is
+  // only partly lit (the stripe turns or is cut inside it, or it holds only the blur past
+  // the end): its row is a mixed-pixel guess off the stripe's centre line. A side where
+  // the stripe goes on after a one-column gap (a dim stripe dipping under the threshold)
+  // is no end.
+  dropped->assign(count, 0);
+  for (size_t i = 0; i < count; ++i) {
+    const int col = p[i].u - x0;
+    const int32_t left = link[2 * i], right = link[2 * i + 1];
+    if (left >= 0 && right >= 0) continue;
+    if ((left < 0 && nearest(col - 2, i, 2) >= 0) || (right < 0 && nearest(col + 2, i, 2) >= 0)) {
+      continue;
+    }
+    if (left < 0 && right < 0) {
+      (*dropped)[i] = params.drop_isolated_peaks;
+    } else {
+      (*dropped)[i] = p[i].intensity < end_ratio * p[left < 0 ? right : left].intensity;
+    }
+  }
+  for (size_t i = 0; i < 2 * count; ++i)
+    if (link[i] >= 0 && (*dropped)[link[i]]) link[i] = -1;
+  if (half_width >= 2) {
+    // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
+    int32_t pair[kMaxAlongStripeHalfWidth + 1][2];
+    auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+    for (size_t i = 0; i < count; ++i) {
+      if ((*dropped)[i]) continue;
+      pair[0][0] = pair[0][1] = static_cast<int32_t>(i);
+      int m = 0;
+      for (int k = 1; k <= half_width; ++k) {
+        const int32_t left = link[2 * pair[k - 1][0]];
+        const int32_t right = link[2 * pair[k - 1][1] + 1];
+        if (left < 0 || right < 0) break;
+        // Each new sample must continue its side's local trend (a step or kink ends the
+        // fit).
+        if (k == 1 ? bends(left, static_cast<int>(i), right)
+                   : bends(left, pair[k - 1][0], pair[k - 2][0]) ||
+                         bends(right, pair[k - 1][1], pair[k - 2][1])) {
+          break;
+        }
+        pair[k][0] = left;
+        pair[k][1] = right;
+        m = k;
+      }
+      if (m < 2) continue;  // A quadratic through 3 samples is the row itself.
+      const float* w = kQuadraticKernels.w[m];
+      float row = w[0] * v[i];
+      for (int k = 1; k <= m; ++k) row += w[k] * (v[pair[k][0]] + v[pair[k][1]]);
+      p[i].v = row;
+    }
+  }
+  // Compact; rows may have moved past each other by less than the link distance, so keep
+  // each column sorted by v.
+  size_t write = 0;
+  for (int c = 0; c < ncols; ++c) {
+    const uint32_t begin = start[c], end = start[c + 1];
+    start[c] = static_cast<uint32_t>(write);
+    for (uint32_t j = begin; j < end; ++j) {
+      if ((*dropped)[j]) continue;
+      size_t k = write++;
+      const Peak x = p[j];
+      for (; k > start[c] && x.v < p[k - 1].v; --k) p[k] = p[k - 1];
+      p[k] = x;
+    }
+  }
+  start[ncols] = static_cast<uint32_t>(write);
+  peaks->resize(write);
+}
+
 struct RowSink {
   PeakExtractor* self;
   const CandidateSearch* search;
@@ -474,6 +629,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   size_t write = 0, begin = 0;
   for (int col = 0; col < ncols; ++col) {
     const size_t end = column_start_[col];
+    column_start_[col] = static_cast<uint32_t>(write);  // Now where column col's output starts.
     Peak* first = out->data() + begin;
     Peak* last = out->data() + end;
     begin = end;
@@ -501,7 +657,9 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
     }
     for (Peak* it = first; it != last; ++it) (*out)[write++] = *it;
   }
+  column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
+  AlongStripePass(params, ncols, roi.x0, column_start_.data(), &rows_, &links_, &dropped_, out);
 }
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {

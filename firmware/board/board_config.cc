@@ -178,7 +178,8 @@ BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& fi
   if (!json.is_object()) throw ConfigError(file + ": expected a JSON object");
   const JsonReader r(json, file);
   r.AllowOnly({"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store",
-               "service", "virtual"});
+               "service", "virtual",
+               "calibration"});  // "calibration" is the host's (host/calibration)
   BoardConfig c;
   c.board = NonEmptyString(r, "board");
   c.description = r.String("description");

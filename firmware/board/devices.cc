@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "firmware/hal/hardware_error.h"
+#include "firmware/hal/libcamera/libcamera_loader.h"
 #include "firmware/hal/modbus/modbus_slide_drive.h"
 #include "firmware/hal/replay/replay_camera.h"
 
@@ -28,9 +29,8 @@ std::unique_ptr<hal::Camera> MakeCamera(const BoardConfig& config, const BoardCa
                                         const DeviceOptions& options, BoardDevices& devices) {
   switch (camera.backend) {
     case CameraBackend::kLibcamera:
-      // LIBCAMERA: replaced on merge by OpenLibcameraCamera(camera.id) (branch libcamera).
-      throw HardwareError(HardwareError::Kind::kIo,
-                          "camera " + camera.name + ": libcamera backend not linked yet");
+      // The module is dlopen'ed here and only here (docs/cameras.md).
+      return hal::OpenLibcameraCamera(camera.id);
     case CameraBackend::kReplay:
       // A recording loops: a sweep usually outlasts it.
       return std::make_unique<hal::ReplayCamera>(hal::ReplayOptions{camera.path, true});

@@ -3,9 +3,13 @@
 #include <filesystem>
 #include <string>
 
+#include <stdlib.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include "firmware/hal/hardware_error.h"
+#include "firmware/hal/libcamera/libcamera_loader.h"
 #include "firmware/hal/replay/replay_camera.h"
 
 namespace mirrorscan::board {
@@ -70,12 +74,33 @@ TEST_F(ReplayBoardTest, VirtualDriveAnswersOverModbusAndLinesStartOff) {
   EXPECT_TRUE(d.button_active_low);
 }
 
-TEST(DevicesTest, LibcameraIsNotLinkedYet) {
+// A libcamera camera goes to the dlopen'ed module and nowhere else: with the module
+// missing the board fails, naming the file (no fallback to another camera).
+TEST(DevicesTest, LibcameraCameraWithoutTheModuleFails) {
+  const std::filesystem::path empty_dir = std::filesystem::temp_directory_path() /
+                                          ("devices_test_no_module_" + std::to_string(getpid()));
+  std::filesystem::create_directories(empty_dir);
+  setenv(hal::kModuleDirEnv, empty_dir.c_str(), 1);
   nlohmann::json board = VirtualBoard();
   board["cameras"][0]["backend"] = "libcamera";
   board["cameras"][0]["id"] = "/base/imx219";
-  EXPECT_NE(ErrorOf(board).find("libcamera backend not linked yet"), std::string::npos);
+  const std::string error = ErrorOf(board);
+  unsetenv(hal::kModuleDirEnv);
+  std::filesystem::remove_all(empty_dir);
+  EXPECT_NE(error.find(hal::kLibcameraModuleFile), std::string::npos) << error;
 }
+
+#if MIRRORSCAN_CAN_LOAD_LIBCAMERA
+// Natively the real module loads; this machine has no camera, so the id is not found and
+// the error says which ids exist. (Never under qemu: loading libcamera hangs there.)
+TEST(DevicesTest, LibcameraCameraThatIsNotThereFails) {
+  nlohmann::json board = VirtualBoard();
+  board["cameras"][0]["backend"] = "libcamera";
+  board["cameras"][0]["id"] = "/base/imx219";
+  const std::string error = ErrorOf(board);
+  EXPECT_NE(error.find("/base/imx219"), std::string::npos) << error;
+}
+#endif
 
 TEST(DevicesTest, VirtualCameraNeedsTheVirtualDrive) {
   // A real Modbus drive (the simulator, reached as an external one) with virtual cameras:

@@ -3,6 +3,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include "host/cli/calibrate_command.h"
+#include "host/cli/calibrate_intrinsics_command.h"
+#include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/device_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
@@ -12,6 +15,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   mirrorscan::cli::AddSimCommands(app);
   mirrorscan::cli::AddPeaksCommand(app);
+  mirrorscan::cli::AddCalibrateCommand(app);
+  mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
+  mirrorscan::cli::AddCalibrateLasersCommand(app);
   mirrorscan::cli::AddDeviceCommands(app);
   try {
     app.parse(argc, argv);

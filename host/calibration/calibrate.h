@@ -1,0 +1,105 @@
+// Mirror-cabinet calibration from one image of the three-panel target per camera (the
+// paper's three steps): per-view camera models, mirror planes as mid-planes between the
+// centre and reflected focal points, then a joint refinement of everything with Ceres.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+#include <opencv2/core/mat.hpp>
+
+#include "boards/virtual/target.h"
+#include "common/config/calibration.h"
+#include "common/config/json_reader.h"
+#include "host/calibration/markers.h"
+
+namespace mirrorscan::calibration {
+
+// Pass/fail limits; keys of board.json's calibration.limits.
+struct CalibrationLimits {
+  double max_rms_px = 0.25;             // per view, after refinement
+  int min_markers_per_view = 4;         // whole markers; a mirror's edge cuts some off
+  double min_contrast_dn = 40.0;        // black border to white surround
+  double max_edge_sigma_px = 1.2;       // blur of the marker edges (sharp: 0.8)
+  double min_white_dn = 60.0;           // brightest percent of the image
+  double min_mirror_angle_deg = 115.0;  // opening angle between the mirrors
+  double max_mirror_angle_deg = 125.0;
+  double max_mirror_tilt_deg = 1.0;    // mirrors stand vertical
+  double max_corner_offset_mm = 20.0;  // mirrors' meeting line from its nominal place
+  double max_yaw_deg = 1.0;            // cabinet symmetry axis from world +y
+  double verify_max_rms_px = 0.5;      // --verify: stored calibration against a new image
+};
+
+// board.json's "calibration" section (every key optional) plus the camera names.
+struct CalibrationSettings {
+  std::vector<std::string> camera_names;
+  virtual_cabinet::TargetConfig target;
+  std::string target_id = "3panel-aruco48";
+  double mirror_width_mm = 620.0;  // nominal reflecting rectangle, for the view regions
+  double mirror_height_mm = 1700.0;
+  double mirror_bottom_mm = 100.0;
+  double panel_offset_mm = 6.0;              // nominal; one target image cannot measure it
+  Eigen::Vector2d corner_xy_mm{0.0, 600.0};  // where the mirrors meet, nominal
+  CalibrationLimits limits;
+
+  static CalibrationSettings FromBoard(const nlohmann::json& board, const std::string& file);
+  static CalibrationSettings LoadBoard(const std::filesystem::path& board_json);
+};
+
+struct CameraImage {
+  std::string name;
+  cv::Mat gray;  // 8-bit, one channel
+};
+
+struct ViewReport {
+  ViewId view = ViewId::kCenter;
+  std::vector<int> found, missing;
+  int rejected = 0;
+  double contrast_dn = 0.0, edge_sigma_px = 0.0;
+  double rms_before_px = 0.0;  // model of steps 1 and 2 (or the stored calibration in verify)
+  double rms_after_px = 0.0, max_after_px = 0.0;
+  std::vector<Eigen::Vector2d> observed, reprojected;  // corners, after refinement
+};
+
+struct CameraReport {
+  std::string name;
+  double white_dn = 0.0;  // the level of the brightest percent of the image
+  std::array<ViewReport, kViews> views;
+};
+
+struct Check {
+  std::string name;
+  double value = 0.0;
+  std::string limit;
+  bool ok = true;
+};
+
+struct CalibrationResult {
+  bool ok = false;
+  // One line each: what failed, and what to do about it.
+  std::vector<std::string> failures;
+  std::optional<Calibration> calibration;  // absent when nothing could be solved
+  std::vector<CameraReport> cameras;
+  std::vector<Check> checks;
+
+  nlohmann::json ReportJson() const;
+};
+
+CalibrationResult Calibrate(const std::vector<CameraImage>& images,
+                            const CalibrationSettings& settings);
+
+// Detects the target in fresh images and measures how far its corners lie from where
+// `existing` puts them, per view; a view beyond limits.verify_max_rms_px has changed.
+CalibrationResult Verify(const std::vector<CameraImage>& images,
+                         const CalibrationSettings& settings, const Calibration& existing);
+
+// The image with found corners (green circles), reprojected ones (red crosses), each
+// offset magnified 50 times (red line) and each view's RMS.
+cv::Mat DrawReport(const CameraImage& image, const CameraReport& report);
+
+}  // namespace mirrorscan::calibration

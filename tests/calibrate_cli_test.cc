@@ -1,0 +1,145 @@
+// mirrorscan calibrate-intrinsics and calibrate-lasers end to end: files written, figures
+// against the library and the virtual cabinet's truth, one clear line on bad input.
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "host/calibration/intrinsics.h"
+
+namespace mirrorscan {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Result {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+Result RunMirrorscan(const std::string& arguments) {
+  const std::string command =
+      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  std::string output;
+  std::array<char, 4096> buffer;
+  while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) output.append(buffer.data(), n);
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+fs::path TempDir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("mirrorscan_calibrate_cli_test_" + name + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+nlohmann::json ReadJson(const fs::path& file) {
+  std::ifstream in(file);
+  return nlohmann::json::parse(in);
+}
+
+const fs::path kSamples = "/usr/share/doc/opencv-doc/examples/data";
+
+TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
+  const fs::path dir = TempDir("intrinsics");
+  std::vector<fs::path> images;
+  std::string arguments;
+  for (int i : {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14}) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "left%02d.jpg", i);
+    images.push_back(kSamples / name);
+    arguments += " " + images.back().string();
+  }
+  ASSERT_TRUE(fs::exists(images[0])) << "install opencv-doc (scripts/setup)";
+  const Result r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --square 25" + arguments +
+                                 " --out " + (dir / "intrinsics.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("[13/13]"), std::string::npos) << r.output;  // progress
+  const nlohmann::json json = ReadJson(dir / "intrinsics.json");
+  CalibrationPattern pattern;
+  pattern.square_mm = 25;
+  const IntrinsicsResult direct = CalibrateIntrinsics(images, pattern);
+  EXPECT_DOUBLE_EQ(json["camera_matrix"][0][0].get<double>(), direct.intrinsics.fx);
+  EXPECT_DOUBLE_EQ(json["camera_matrix"][1][1].get<double>(), direct.intrinsics.fy);
+  EXPECT_DOUBLE_EQ(json["camera_matrix"][0][2].get<double>(), direct.intrinsics.cx);
+  EXPECT_DOUBLE_EQ(json["camera_matrix"][1][2].get<double>(), direct.intrinsics.cy);
+  EXPECT_DOUBLE_EQ(json["distortion"][0].get<double>(), direct.intrinsics.k1);
+  EXPECT_DOUBLE_EQ(json["distortion"][4].get<double>(), direct.intrinsics.k3);
+  EXPECT_DOUBLE_EQ(json["rms_px"].get<double>(), direct.rms_px);
+  fs::remove_all(dir);
+}
+
+TEST(CalibrateCli, IntrinsicsBadInputIsOneClearLine) {
+  const fs::path dir = TempDir("intrinsics_bad");
+  const fs::path blank = dir / "blank.png";
+  cv::imwrite(blank.string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
+  const std::string out = " --out " + (dir / "i.json").string();
+  Result r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --square 25 " +
+                           (kSamples / "left01.jpg").string() + " " + blank.string() + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.output.find("\nmirrorscan: " + blank.string() + ": no 9x6 chessboard found\n"),
+            std::string::npos)
+      << r.output;
+  r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --charuco 5x7 --square 25 " +
+                    blank.string() + out);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_EQ(r.output,
+            "mirrorscan: give exactly one of --chessboard COLSxROWS or --charuco COLSxROWS\n");
+  EXPECT_FALSE(fs::exists(dir / "i.json"));
+  fs::remove_all(dir);
+}
+
+TEST(CalibrateCli, LasersOfASimulatedScan) {
+  const fs::path dir = TempDir("lasers");
+  const std::string scene =
+      std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/mannequin.json";
+  ASSERT_EQ(RunMirrorscan("sim scan --scene " + scene + " --frames 15 --no-images --out " +
+                          dir.string() + " --peaks " + (dir / "scan.mscan").string())
+                .exit_code,
+            0);
+  const Result r = RunMirrorscan("calibrate-lasers " + (dir / "scan.mscan").string() +
+                                 " --calibration " + (dir / "calibration.json").string() +
+                                 " --out " + (dir / "lasers.json").string() +
+                                 " --calibration-out " + (dir / "fitted.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const nlohmann::json lasers = ReadJson(dir / "lasers.json");
+  ASSERT_EQ(lasers["frames"].size(), 30u);  // 15 instants, 2 cameras
+  for (const nlohmann::json& frame : lasers["frames"]) {
+    const double t = frame["time_s"].get<double>();
+    for (int k = 0; k < 3; ++k) {
+      // The mannequin scene's lasers: -50 mm at t = 0, 150 mm/s, 200 mm apart.
+      EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 150.0 * t + 200.0 * k, 0.1);
+    }
+  }
+  EXPECT_GT(lasers["residual_rms_mm"].get<double>(), 0.0);
+  EXPECT_LT(lasers["residual_max_mm"].get<double>(), 0.5);
+  EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
+  const nlohmann::json fitted = ReadJson(dir / "fitted.json");
+  EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 150.0, 0.1);
+
+  // A calibration whose mirrors have no corners cannot say where the panels are.
+  nlohmann::json calibration = ReadJson(dir / "calibration.json");
+  for (auto& mirror : calibration["mirrors"]) mirror.erase("corners_mm");
+  std::ofstream(dir / "no_corners.json") << calibration.dump();
+  const Result bad =
+      RunMirrorscan("calibrate-lasers " + (dir / "scan.mscan").string() + " --calibration " +
+                    (dir / "no_corners.json").string() + " --out " + (dir / "x.json").string());
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_EQ(bad.output,
+            "mirrorscan: " + (dir / "no_corners.json").string() +
+                ": mirrors[0].corners_mm: the laser fit needs the mirror's 4 corners\n");
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace mirrorscan
