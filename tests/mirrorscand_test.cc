@@ -154,7 +154,8 @@ class MirrorscandTest : public ::testing::Test {
     return file;
   }
   std::vector<std::string> Args(const fs::path& board) {
-    return {"--board", board.string(), "--data-dir", data_.string()};
+    // Port 0: the device API takes any free port, so parallel tests never collide.
+    return {"--board", board.string(), "--data-dir", data_.string(), "--listen", "127.0.0.1:0"};
   }
   std::vector<store::ScanInfo> Scans() {
     return store::ScanStore::Open(data_)->List();  // Open also recovers what a crash left

@@ -2,9 +2,9 @@
 // the scan store, runs the sequencer and its safety supervisor until SIGTERM/SIGINT.
 //
 // Exit codes: 0 stopped by a signal, or --exit-after-scan and the scan completed;
-// 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line or
-// board.json; 3 a device failed to start; 4 the data directory cannot be used;
-// 5 an internal error (the lasers were switched off first).
+// 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line,
+// board.json or stored calibration.json; 3 a device or the device API failed to start; 4 the data
+// directory cannot be used; 5 an internal error (the lasers were switched off first).
 
 #include <signal.h>
 #include <sys/socket.h>
@@ -30,6 +30,9 @@
 #include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
 #include "firmware/scan/sequencer.h"
+#include "firmware/service/api_server.h"
+#include "firmware/service/calibration_store.h"
+#include "firmware/service/token.h"
 #include "firmware/store/scan_store.h"
 
 namespace {
@@ -42,7 +45,8 @@ constexpr const char* kUsageText = R"(usage: mirrorscand --board BOARD.json --da
 
   --board FILE        the board description (boards/*/board.json)
   --data-dir DIR      the scan store (created if missing)
-  --listen HOST:PORT  the device API's address (default: board.json service.listen)
+  --listen HOST:PORT  the device API's address (default: board.json service.listen;
+                      port 0 takes any free port, which the log names)
   --scene FILE        virtual boards only: the scene to render instead of virtual.scene
   --scan-on-start     start one scan as soon as the daemon is ready (origin "test")
   --exit-after-scan   exit once a scan has ended (0 complete, 1 fault or aborted)
@@ -241,13 +245,27 @@ int Run(const Args& args, const sigset_t& signals) {
     return kHardware;
   }
 
-  // DEVICE API: firmware/service plugs in here. It needs the ScanStore (*store), the
-  // ScanControl (*sequencer), the BoardConfig (config) and the address (listen); start it
-  // here and stop it before the sequencer is destroyed.
-  spdlog::info(
-      "mirrorscand {} ready: board {}, data dir {}, API address {} (no API server in "
-      "this build)",
-      MIRRORSCAN_VERSION, config.board, args.data_dir.string(), listen);
+  // The device API; stopped before the sequencer goes (it holds references to it).
+  std::unique_ptr<service::CalibrationStore> calibration;
+  std::unique_ptr<service::ApiServer> api;
+  try {
+    calibration = std::make_unique<service::CalibrationStore>(args.data_dir / "calibration.json");
+    service::ApiServerOptions api_options;
+    api_options.firmware_version = MIRRORSCAN_VERSION;
+    api = std::make_unique<service::ApiServer>(*store, *sequencer, config, *calibration,
+                                               service::ResolveServiceToken(config.service),
+                                               api_options);
+    const int port = api->Start(listen);
+    spdlog::info("mirrorscand {} ready: board {}, data dir {}, device API on {}:{}",
+                 MIRRORSCAN_VERSION, config.board, args.data_dir.string(),
+                 listen.substr(0, listen.rfind(':')), port);
+  } catch (const ConfigError& e) {
+    spdlog::error("{}", e.what());
+    return kUsage;
+  } catch (const std::exception& e) {
+    spdlog::error("device API: {}", e.what());
+    return kHardware;
+  }
 
   SystemdNotifier notifier;
   notifier.Send("READY=1");
@@ -285,6 +303,7 @@ int Run(const Args& args, const sigset_t& signals) {
       break;
     }
   }
+  api.reset();
   // The sequencer finishes a running scan as aborted and leaves the outputs safe.
   sequencer.reset();
   if (!devices.gpio.lasers->SafeOff()) {

@@ -132,7 +132,7 @@ StoreConfig ParseStore(const JsonReader& store) {
 }
 
 ServiceConfig ParseService(const JsonReader& service) {
-  service.AllowOnly({"listen", "token_file"});
+  service.AllowOnly({"listen", "token", "token_file", "auth_reads"});
   ServiceConfig s;
   s.listen = NonEmptyString(service, "listen");
   const size_t colon = s.listen.rfind(':');
@@ -142,11 +142,37 @@ ServiceConfig ParseService(const JsonReader& service) {
   if (colon == 0 || !digits || std::stoi(port) < 1 || std::stoi(port) > 65535) {
     service.Fail("listen", "expected \"host:port\" with port 1..65535");
   }
-  s.token_file = NonEmptyString(service, "token_file");
+  const bool has_token = service.Has("token");
+  const bool has_token_file = service.Has("token_file");
+  if (has_token == has_token_file) {
+    service.Fail("token",
+                 "give exactly one of \"token\" (a fixed development token) and "
+                 "\"token_file\" (generated at first start)");
+  }
+  if (has_token) {
+    s.token = service.String("token");
+    if (!IsValidServiceToken(s.token)) {
+      service.Fail("token", std::string("expected ") + kServiceTokenRule);
+    }
+  } else {
+    s.token_file = NonEmptyString(service, "token_file");
+    if (s.token_file.is_relative()) service.Fail("token_file", "expected an absolute path");
+  }
+  s.auth_reads = service.Bool("auth_reads", false);
   return s;
 }
 
 }  // namespace
+
+bool IsValidServiceToken(std::string_view token) {
+  if (token.size() < 16 || token.size() > 256) return false;
+  for (const char c : token) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '-' || c == '.' || c == '_' || c == '~';
+    if (!ok) return false;
+  }
+  return true;
+}
 
 BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& file) {
   if (!json.is_object()) throw ConfigError(file + ": expected a JSON object");

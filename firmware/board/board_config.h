@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -49,11 +50,20 @@ struct StoreConfig {
   int retention_scans = 50;  // oldest completed scans beyond this are deleted
 };
 
-// "service": the device API.
+// "service": the device API (docs/device-api.md). Exactly one of `token` and `token_file`.
 struct ServiceConfig {
   std::string listen;  // "host:port"
+  // A fixed token in board.json: the virtual board's development token only, since a
+  // token in a shipped file is no secret.
+  std::string token;
+  // A real board's token: generated at first start (mode 0600), then read at every start.
   std::filesystem::path token_file;
+  bool auth_reads = false;  // also require the token for GET requests
 };
+
+inline constexpr const char* kServiceTokenRule = "16 to 256 characters of A-Z a-z 0-9 - . _ ~";
+// What a bearer token may be (kServiceTokenRule).
+bool IsValidServiceToken(std::string_view token);
 
 // A whole board.json. Every section is required; unknown keys anywhere are errors, and
 // every error is a ConfigError naming the file and key ("board.json: cameras[1].fps: ...").

@@ -56,6 +56,9 @@ TEST(BoardConfigTest, VirtualBoardUsesVirtualBackends) {
   EXPECT_EQ(c.virtual_scene, kBoards / "virtual" / "scenes" / "mannequin.json");
   EXPECT_TRUE(std::filesystem::exists(c.virtual_scene));
   EXPECT_EQ(c.scan.camera_stall_ms, 250.0);
+  // The development token stands in board.json; real boards generate theirs.
+  EXPECT_EQ(c.service.token, "virtual-dev-token-not-a-secret");
+  EXPECT_TRUE(c.service.token_file.empty());
 }
 
 TEST(BoardConfigTest, PiBoardsUseHardwareBackends) {
@@ -72,6 +75,8 @@ TEST(BoardConfigTest, PiBoardsUseHardwareBackends) {
     ASSERT_EQ(c.drive.backend, BoardDrive::Backend::kModbus);
     EXPECT_EQ(c.drive.modbus.transport, hal::ModbusDriveConfig::Transport::kRtu);
     EXPECT_EQ(c.drive.modbus.device, "/dev/ttyAMA0");
+    EXPECT_TRUE(c.service.token.empty());
+    EXPECT_EQ(c.service.token_file, "/var/lib/mirrorscan/token");
   }
 }
 
@@ -200,6 +205,32 @@ TEST_F(BadBoardTest, RetentionMustBePositive) {
 TEST_F(BadBoardTest, ListenNeedsAPort) {
   json_["service"]["listen"] = "127.0.0.1";
   ExpectError("service.listen", "host:port");
+}
+
+TEST_F(BadBoardTest, ServiceNeedsExactlyOneTokenSource) {
+  json_["service"]["token_file"] = "/var/lib/mirrorscan/token";
+  ExpectError("service.token", "exactly one");
+  json_["service"].erase("token");
+  json_["service"].erase("token_file");
+  ExpectError("service.token", "exactly one");
+}
+
+TEST_F(BadBoardTest, ServiceTokenMustBeLongAndPlain) {
+  json_["service"]["token"] = "short";
+  ExpectError("service.token", "16 to 256");
+  json_["service"]["token"] = "a token with spaces in it";
+  ExpectError("service.token", "16 to 256");
+}
+
+TEST_F(BadBoardTest, ServiceTokenFileMustBeAbsolute) {
+  json_["service"].erase("token");
+  json_["service"]["token_file"] = "token";
+  ExpectError("service.token_file", "absolute");
+}
+
+TEST_F(BadBoardTest, ServiceAuthReadsIsABool) {
+  json_["service"]["auth_reads"] = "yes";
+  ExpectError("service.auth_reads");
 }
 
 TEST(BoardConfigLoadTest, MissingFileNamesTheFile) {

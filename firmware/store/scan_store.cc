@@ -15,6 +15,8 @@
 #include <system_error>
 #include <utility>
 
+#include "common/protocol/protocol.h"
+
 namespace mirrorscan::store {
 
 namespace fs = std::filesystem;
@@ -33,7 +35,6 @@ struct StoreState {
 
 namespace {
 
-constexpr size_t kIdLength = 21;  // YYYYMMDDTHHMMSSZ-NNNN
 constexpr std::string_view kArchiveSuffix = ".mscan";
 constexpr std::string_view kPartialSuffix = ".mscan.partial";
 constexpr std::string_view kMetaSuffix = ".json";
@@ -263,22 +264,7 @@ void ApplyRetention(const internal::StoreState& state) {
 
 }  // namespace
 
-bool IsValidScanId(std::string_view id) {
-  if (id.size() != kIdLength) return false;
-  for (size_t i = 0; i < id.size(); ++i) {
-    const char c = id[i];
-    if (i == 8) {
-      if (c != 'T') return false;
-    } else if (i == 15) {
-      if (c != 'Z') return false;
-    } else if (i == 16) {
-      if (c != '-') return false;
-    } else if (c < '0' || c > '9') {
-      return false;
-    }
-  }
-  return true;
-}
+bool IsValidScanId(std::string_view id) { return protocol::IsValidScanId(id); }
 
 std::string_view ScanStateName(ScanState state) {
   switch (state) {

@@ -6,6 +6,7 @@
 #include "host/cli/calibrate_command.h"
 #include "host/cli/calibrate_intrinsics_command.h"
 #include "host/cli/calibrate_lasers_command.h"
+#include "host/cli/device_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
@@ -17,6 +18,7 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddCalibrateCommand(app);
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   mirrorscan::cli::AddCalibrateLasersCommand(app);
+  mirrorscan::cli::AddDeviceCommands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,104 @@
+#pragma once
+
+// The device HTTP API (docs/device-api.md) on cpp-httplib: status, scans, archive
+// download with Range and SHA-256, live archive follow, server-sent events, calibration
+// and raw captures. It only uses the ScanControl interface, the scan store and the board
+// config, so it is built and tested apart from the sequencer.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "firmware/board/board_config.h"
+#include "firmware/scan/scan_control.h"
+#include "firmware/service/calibration_store.h"
+#include "firmware/store/scan_store.h"
+
+namespace httplib {
+class Server;
+struct Request;
+struct Response;
+}  // namespace httplib
+
+namespace mirrorscan::service {
+
+struct ApiServerOptions {
+  std::string firmware_version;
+  size_t max_body_bytes = 4u << 20;  // larger bodies get 413 (a calibration is ~10 kB)
+  int threads = 8;                   // worker threads (connections served at once)
+  // Live streams (archive follow and events) at once; each holds a worker thread, so
+  // this stays below `threads` and plain requests are always served. More get 503.
+  int max_streams = 4;
+  std::chrono::milliseconds follow_poll{25};  // how often a follow looks for new bytes
+  std::chrono::seconds io_timeout{10};        // socket read/write timeouts
+  // A comment line on a quiet SSE stream: keeps proxies open and finds vanished clients
+  // (their listener is dropped at the first failed write).
+  std::chrono::milliseconds keepalive_interval{5000};
+};
+
+class ApiServer {
+ public:
+  // All references must outlive the server. `token` is the bearer token
+  // (ResolveServiceToken); `calibration` holds <data-dir>/calibration.json.
+  ApiServer(store::ScanStore& store, scan::ScanControl& control, const board::BoardConfig& board,
+            CalibrationStore& calibration, std::string token, ApiServerOptions options = {});
+  ~ApiServer();
+  ApiServer(const ApiServer&) = delete;
+  ApiServer& operator=(const ApiServer&) = delete;
+
+  // Binds "host:port" (port 0 picks a free one) and serves on background threads; returns
+  // the bound port. Throws std::runtime_error when the address cannot be bound.
+  int Start(const std::string& listen);
+  // Ends live streams, stops accepting and joins the threads. Idempotent.
+  void Stop();
+
+ private:
+  using Request = httplib::Request;
+  using Response = httplib::Response;
+
+  void Route();
+  bool Authorize(const Request& req, Response& res, bool mutating) const;
+  void HandleStatus(const Request& req, Response& res);
+  void HandleListScans(const Request& req, Response& res);
+  void HandleStartScan(const Request& req, Response& res);
+  void HandleGetScan(const Request& req, Response& res);
+  void HandleDeleteScan(const Request& req, Response& res);
+  void HandleArchive(const Request& req, Response& res);
+  void ServeArchiveFile(const Request& req, Response& res, const std::string& id);
+  void FollowArchive(const Request& req, Response& res, const std::string& id);
+  void HandleEvents(const Request& req, Response& res);
+  void HandleGetCalibration(const Request& req, Response& res);
+  void HandlePutCalibration(const Request& req, Response& res);
+  void HandleCapture(const Request& req, Response& res);
+  // Takes a live-stream slot; false (and a 503 sent) when all are taken.
+  bool AcquireStream(Response& res);
+  // The SHA-256 of a finished archive, computed once per (id, size, mtime).
+  std::string ArchiveSha256(const std::string& id, const std::filesystem::path& path);
+
+  store::ScanStore& store_;
+  scan::ScanControl& control_;
+  const board::BoardConfig& board_;
+  CalibrationStore& calibration_;
+  const std::string token_;
+  const ApiServerOptions options_;
+  std::unique_ptr<httplib::Server> server_;
+  std::thread thread_;
+  std::atomic<bool> stopping_{false};
+  std::atomic<bool> listen_ended_{false};
+  std::atomic<int> streams_{0};
+  std::mutex sha_mutex_;
+  struct ShaEntry {
+    uintmax_t size = 0;
+    std::filesystem::file_time_type mtime;
+    std::string sha256;
+  };
+  std::map<std::string, ShaEntry> sha_cache_;
+};
+
+}  // namespace mirrorscan::service

@@ -1,0 +1,642 @@
+#include "firmware/service/api_server.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <httplib.h>
+
+#include "common/protocol/protocol.h"
+#include "common/protocol/sha256.h"
+#include "common/scan_format/scan_format.h"
+#include "firmware/service/test_scan_control.h"
+
+namespace mirrorscan::service {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr char kToken[] = "virtual-dev-token-not-a-secret";
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string Sha256Of(const std::string& bytes) {
+  protocol::Sha256 sha;
+  sha.Update(bytes);
+  return sha.HexDigest();
+}
+
+class ApiServerTest : public ::testing::Test {
+ protected:
+  void SetUp() override { Start({}); }
+
+  void Start(TestScanControl::Options scan_options, bool auth_reads = false) {
+    dir_ = fs::path(testing::TempDir()) /
+           ("api_server_test_" + std::to_string(::getpid()) + "_" +
+            std::string(testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    board_ =
+        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/board.json");
+    board_.service.auth_reads = auth_reads;
+    store_ = store::ScanStore::Open(dir_ / "scans");
+    control_ = std::make_unique<TestScanControl>(*store_, scan_options);
+    calibration_ = std::make_unique<CalibrationStore>(dir_ / "calibration.json");
+    ApiServerOptions options;
+    options.firmware_version = "9.8.7";
+    options.io_timeout = io_timeout_;
+    // A keep-alive line is how a vanished SSE client is noticed; short here so tests are.
+    options.keepalive_interval = std::chrono::milliseconds(200);
+    server_ =
+        std::make_unique<ApiServer>(*store_, *control_, board_, *calibration_, kToken, options);
+    port_ = server_->Start("127.0.0.1:0");
+  }
+
+  void Restart(TestScanControl::Options scan_options, bool auth_reads = false) {
+    server_.reset();
+    control_.reset();
+    Start(scan_options, auth_reads);
+  }
+
+  void TearDown() override {
+    server_.reset();
+    control_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  httplib::Client Client() const {
+    httplib::Client client("127.0.0.1", port_);
+    client.set_read_timeout(10, 0);
+    return client;
+  }
+  httplib::Headers Auth(const std::string& token = kToken) const {
+    return {{"Authorization", "Bearer " + token}};
+  }
+
+  // Starts a scan through the API and returns its id.
+  std::string StartScan() {
+    auto res = Client().Post("/api/v1/scans", Auth(), "", "application/json");
+    EXPECT_TRUE(res);
+    if (!res) return "";
+    EXPECT_EQ(res->status, 201) << res->body;
+    return json::parse(res->body).at("id").get<std::string>();
+  }
+
+  std::string CompletedScan() {
+    const std::string id = StartScan();
+    control_->Join();
+    return id;
+  }
+
+  static void ExpectJsonError(const httplib::Result& res, int status, const std::string& words) {
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, status) << res->body;
+    EXPECT_EQ(res->get_header_value("X-Mirrorscan-Api-Version"), "1");
+    const json body = json::parse(res->body, nullptr, false);
+    ASSERT_TRUE(body.is_object()) << res->body;
+    EXPECT_EQ(body.value("error", ""), protocol::ErrorCode(status)) << res->body;
+    EXPECT_NE(body.value("message", "").find(words), std::string::npos) << res->body;
+  }
+
+  fs::path dir_;
+  board::BoardConfig board_;
+  std::unique_ptr<store::ScanStore> store_;
+  std::unique_ptr<TestScanControl> control_;
+  std::unique_ptr<CalibrationStore> calibration_;
+  std::unique_ptr<ApiServer> server_;
+  int port_ = 0;
+  std::chrono::seconds io_timeout_{2};
+};
+
+TEST_F(ApiServerTest, StatusNamesBoardVersionStateAndDisk) {
+  auto res = Client().Get("/api/v1/status");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(res->get_header_value("X-Mirrorscan-Api-Version"), "1");
+  const auto status = json::parse(res->body).get<protocol::DeviceStatus>();
+  EXPECT_EQ(status.board, "virtual");
+  EXPECT_EQ(status.firmware_version, "9.8.7");
+  EXPECT_EQ(status.scan.state, "idle");
+  EXPECT_EQ(status.calibration_sha256, "");
+  EXPECT_GT(status.disk.total_bytes, 0u);
+  EXPECT_EQ(status.disk.scans_bytes, 0u);
+}
+
+TEST_F(ApiServerTest, ScanIsListedAndItsArchiveDownloadsWithChecksum) {
+  const std::string id = CompletedScan();
+  const std::string on_disk = ReadFile(store_->Path(id));
+  ASSERT_GT(on_disk.size(), 1000u);
+
+  auto list = Client().Get("/api/v1/scans");
+  ASSERT_TRUE(list);
+  const json scans = json::parse(list->body).at("scans");
+  ASSERT_EQ(scans.size(), 1u);
+  const auto summary = scans[0].get<protocol::ScanSummary>();
+  EXPECT_EQ(summary.id, id);
+  EXPECT_EQ(summary.state, "complete");
+  EXPECT_EQ(summary.frames, 40u);
+  EXPECT_EQ(summary.bytes, on_disk.size());
+
+  auto one = Client().Get("/api/v1/scans/" + id);
+  ASSERT_TRUE(one);
+  EXPECT_EQ(json::parse(one->body).get<protocol::ScanSummary>().header.value("origin", ""), "api");
+
+  auto archive = Client().Get("/api/v1/scans/" + id + "/archive");
+  ASSERT_TRUE(archive);
+  EXPECT_EQ(archive->status, 200);
+  EXPECT_EQ(archive->body, on_disk);
+  EXPECT_EQ(archive->get_header_value("X-Mirrorscan-SHA256"), Sha256Of(on_disk));
+  EXPECT_EQ(archive->get_header_value("ETag"), "\"" + Sha256Of(on_disk) + "\"");
+  EXPECT_EQ(archive->get_header_value("Accept-Ranges"), "bytes");
+  const ScanArchive read = ReadScan(
+      std::span(reinterpret_cast<const uint8_t*>(archive->body.data()), archive->body.size()));
+  EXPECT_TRUE(read.report.complete) << read.report.message;
+  EXPECT_EQ(read.frames.size(), 40u);
+}
+
+TEST_F(ApiServerTest, RangesResumeAndBadRangesGet416) {
+  const std::string id = CompletedScan();
+  const std::string on_disk = ReadFile(store_->Path(id));
+  const std::string path = "/api/v1/scans/" + id + "/archive";
+  const size_t size = on_disk.size();
+
+  auto tail = Client().Get(path, {{"Range", "bytes=1000-"}});
+  ASSERT_TRUE(tail);
+  EXPECT_EQ(tail->status, 206);
+  EXPECT_EQ(tail->body, on_disk.substr(1000));
+  EXPECT_EQ(tail->get_header_value("Content-Range"),
+            "bytes 1000-" + std::to_string(size - 1) + "/" + std::to_string(size));
+  EXPECT_EQ(tail->get_header_value("X-Mirrorscan-SHA256"), Sha256Of(on_disk));
+
+  auto middle = Client().Get(path, {{"Range", "bytes=10-19"}});
+  ASSERT_TRUE(middle);
+  EXPECT_EQ(middle->status, 206);
+  EXPECT_EQ(middle->body, on_disk.substr(10, 10));
+
+  auto suffix = Client().Get(path, {{"Range", "bytes=-7"}});
+  ASSERT_TRUE(suffix);
+  EXPECT_EQ(suffix->body, on_disk.substr(size - 7));
+
+  for (const std::string& bad :
+       std::vector<std::string>{"bytes=" + std::to_string(size) + "-", "bytes=0-1,4-5", "bytes=9-3",
+                                "items=0-", "bytes=-0"}) {
+    SCOPED_TRACE(bad);
+    auto res = Client().Get(path, {{"Range", bad}});
+    ExpectJsonError(res, 416, "Range");
+    // httplib itself refuses syntax errors, before the archive's size is known.
+    if (bad.find("bytes=9-3") == std::string::npos && bad.find("items") == std::string::npos) {
+      EXPECT_EQ(res->get_header_value("Content-Range"), "bytes */" + std::to_string(size));
+    }
+  }
+  // A Range header on a JSON endpoint is ignored, never cuts the body.
+  auto status = Client().Get("/api/v1/status", {{"Range", "bytes=5-"}});
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  EXPECT_TRUE(json::parse(status->body, nullptr, false).is_object());
+}
+
+TEST_F(ApiServerTest, FollowStreamsTheRunningScanUpToTheFooter) {
+  Restart({.frames = 60, .frame_interval = std::chrono::milliseconds(15), .peaks_per_frame = 100});
+  const std::string id = StartScan();
+  // A plain download of a scan being written is refused and says what to do.
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/archive"), 409, "follow=1");
+
+  std::string streamed;
+  bool bytes_before_end = false;
+  auto res = Client().Get("/api/v1/scans/" + id + "/archive?follow=1",
+                          [&](const char* data, size_t length) {
+                            streamed.append(data, length);
+                            if (control_->Status().state == scan::SequencerState::kSweeping) {
+                              bytes_before_end = true;
+                            }
+                            return true;
+                          });
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_TRUE(bytes_before_end) << "nothing arrived while the scan ran";
+  control_->Join();
+  const std::string on_disk = ReadFile(store_->Path(id));
+  EXPECT_EQ(store_->Get(id).state, store::ScanState::kComplete);
+  EXPECT_EQ(streamed, on_disk);
+  const ScanArchive read =
+      ReadScan(std::span(reinterpret_cast<const uint8_t*>(streamed.data()), streamed.size()));
+  EXPECT_TRUE(read.report.complete) << read.report.message;
+  EXPECT_EQ(read.frames.size(), 60u);
+}
+
+// Opens a follow of `id` on a raw socket with a tiny receive buffer and never reads it.
+int StalledFollower(int port, const std::string& id) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int small = 4096;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof(small));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) return -1;
+  const std::string request =
+      "GET /api/v1/scans/" + id + "/archive?follow=1 HTTP/1.1\r\nHost: x\r\n\r\n";
+  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  return fd;
+}
+
+TEST_F(ApiServerTest, ReadersThatStallNeverSlowTheScan) {
+  // Stalled clients would hold their streams for a minute; a scan that waited for them
+  // would take that long.
+  io_timeout_ = std::chrono::seconds(60);
+  Restart(
+      {.frames = 100, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 3500});
+  const auto start = std::chrono::steady_clock::now();
+  const std::string id = StartScan();
+  std::vector<int> stalled;
+  for (int i = 0; i < 3; ++i) stalled.push_back(StalledFollower(port_, id));
+  auto status = Client().Get("/api/v1/status");  // still served meanwhile
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  control_->Join();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  // 100 frames x 10 ms; the ~6 MB archive is more than loopback socket buffers hold (4 MB
+  // at most), so the stalled streams really block their server threads.
+  EXPECT_GT(fs::file_size(store_->Path(id)), 5'000'000u);
+  EXPECT_LT(seconds, 30.0);  // about 1 s; generous for qemu
+  EXPECT_EQ(store_->Get(id).state, store::ScanState::kComplete);
+  for (const int fd : stalled) ::close(fd);
+}
+
+TEST_F(ApiServerTest, FollowResumesFromAnOffset) {
+  Restart({.frames = 30, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 50});
+  const std::string id = StartScan();
+  std::string streamed;
+  auto res = Client().Get("/api/v1/scans/" + id + "/archive?follow=1&offset=100",
+                          [&](const char* data, size_t length) {
+                            streamed.append(data, length);
+                            return true;
+                          });
+  ASSERT_TRUE(res);
+  control_->Join();
+  EXPECT_EQ(streamed, ReadFile(store_->Path(id)).substr(100));
+  // Following a finished scan past its end is refused; at its end yields nothing.
+  const size_t size = fs::file_size(store_->Path(id));
+  ExpectJsonError(
+      Client().Get("/api/v1/scans/" + id + "/archive?follow=1&offset=" + std::to_string(size + 1)),
+      416, "past the end");
+  auto at_end =
+      Client().Get("/api/v1/scans/" + id + "/archive?follow=1&offset=" + std::to_string(size));
+  ASSERT_TRUE(at_end);
+  EXPECT_EQ(at_end->status, 200);
+  EXPECT_EQ(at_end->body, "");
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/archive?follow=1&offset=-1"), 400,
+                  "offset");
+}
+
+TEST_F(ApiServerTest, EventsReportStateAndProgressThenUnsubscribe) {
+  Restart({.frames = 20, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 10});
+  std::string text;
+  std::atomic<bool> subscribed{false};
+  std::thread reader([&] {
+    Client().Get("/api/v1/events", [&](const char* data, size_t length) {
+      subscribed = true;
+      text.append(data, length);
+      return text.find("\"state\":\"done\"") == std::string::npos;
+    });
+  });
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (!(subscribed && control_->listeners() == 1) &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_EQ(control_->listeners(), 1);
+  const std::string id = StartScan();
+  reader.join();
+  // First the state at subscription (idle), then sweeping, progress steps, done.
+  std::vector<protocol::ScanEventMessage> events;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("data: ", 0) == 0) events.push_back(json::parse(line.substr(6)));
+  }
+  ASSERT_GE(events.size(), 3u);
+  EXPECT_EQ(events.front().scan.state, "idle");
+  EXPECT_EQ(events.back().type, "state");
+  EXPECT_EQ(events.back().scan.state, "done");
+  EXPECT_EQ(events.back().scan.scan_id, id);
+  double last_progress = 0;
+  int progress_events = 0;
+  for (const auto& e : events) {
+    if (e.type != "progress") continue;
+    ++progress_events;
+    EXPECT_GE(e.scan.progress, last_progress);
+    last_progress = e.scan.progress;
+  }
+  EXPECT_EQ(progress_events, 20);
+  EXPECT_DOUBLE_EQ(last_progress, 1.0);
+  // The disconnected client's listener is gone.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (control_->listeners() > 0 && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(control_->listeners(), 0);
+}
+
+TEST_F(ApiServerTest, StreamsAreLimitedAndPlainRequestsStillServed) {
+  std::atomic<bool> stop{false};
+  std::vector<std::thread> readers;
+  for (int i = 0; i < 4; ++i) {
+    readers.emplace_back(
+        [&] { Client().Get("/api/v1/events", [&](const char*, size_t) { return !stop.load(); }); });
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (control_->listeners() < 4 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_EQ(control_->listeners(), 4);
+  ExpectJsonError(Client().Get("/api/v1/events"), 503, "too many");
+  auto status = Client().Get("/api/v1/status");
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  stop = true;
+  server_->Stop();  // ends the streams without waiting for their clients
+  for (auto& t : readers) t.join();
+}
+
+TEST_F(ApiServerTest, EveryMutatingEndpointNeedsTheToken) {
+  const std::string id = CompletedScan();
+  struct Call {
+    std::string method, path, body;
+  };
+  const std::vector<Call> calls = {
+      {"POST", "/api/v1/scans", ""},
+      {"DELETE", "/api/v1/scans/" + id, ""},
+      {"PUT", "/api/v1/calibration", R"({"schema":"mirrorscan.calibration"})"},
+      {"POST", "/api/v1/captures", R"({"camera":"upper"})"},
+  };
+  for (const Call& call : calls) {
+    SCOPED_TRACE(call.method + " " + call.path);
+    for (const auto& [headers, status] : std::vector<std::pair<httplib::Headers, int>>{
+             {{}, 401},
+             {{{"Authorization", "Basic dXNlcjpwYXNz"}}, 401},
+             {{{"Authorization", "Bearer"}}, 401},
+             {Auth("virtual-dev-token-not-a-secreT"), 403},
+             {Auth(std::string(kToken) + "x"), 403},
+             {Auth(""), 401}}) {
+      httplib::Client client = Client();
+      httplib::Result res =
+          call.method == "POST"
+              ? client.Post(call.path.c_str(), headers, call.body, "application/json")
+          : call.method == "PUT"
+              ? client.Put(call.path.c_str(), headers, call.body, "application/json")
+              : client.Delete(call.path.c_str(), headers);
+      ExpectJsonError(res, status, status == 401 ? "missing bearer token" : "wrong bearer token");
+      if (status == 401) {
+        EXPECT_EQ(res->get_header_value("WWW-Authenticate"), "Bearer realm=\"mirrorscan\"");
+      }
+    }
+  }
+  // Nothing happened: one scan, still there; no calibration.
+  EXPECT_EQ(store_->List().size(), 1u);
+  EXPECT_FALSE(calibration_->Get().has_value());
+}
+
+TEST_F(ApiServerTest, ReadsNeedTheTokenWhenConfigured) {
+  Restart({}, /*auth_reads=*/true);
+  ExpectJsonError(Client().Get("/api/v1/status"), 401, "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/scans", Auth("wrong-token-wrong-token")), 403, "wrong");
+  auto res = Client().Get("/api/v1/status", Auth());
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+}
+
+TEST_F(ApiServerTest, HostileIdsAreRefusedAndTouchNothing) {
+  const std::string id = CompletedScan();
+  const std::string before = ReadFile(store_->Path(id));
+  const fs::path outside = dir_ / "outside.json";
+  std::ofstream(outside) << "{}";
+  for (const std::string& bad : std::vector<std::string>{
+           "..", "%2e%2e", "..%2foutside.json", "%2e%2e%2foutside.json", "." + id, id + "%00",
+           id.substr(0, 20), id + "0", "20261124T035501Z-000%2f", "*", std::string(5000, 'a')}) {
+    SCOPED_TRACE(bad);
+    for (const std::string suffix : {"", "/archive"}) {
+      auto get = Client().Get(("/api/v1/scans/" + bad + suffix).c_str());
+      ASSERT_TRUE(get);
+      EXPECT_GE(get->status, 400);
+      EXPECT_LT(get->status, 500);
+      EXPECT_TRUE(json::parse(get->body, nullptr, false).is_object()) << get->body;
+    }
+    auto del = Client().Delete(("/api/v1/scans/" + bad).c_str(), Auth());
+    ASSERT_TRUE(del);
+    EXPECT_GE(del->status, 400);
+    EXPECT_LT(del->status, 500);
+  }
+  ExpectJsonError(Client().Get("/api/v1/scans/%2e%2e"), 400, "not a scan id");
+  ExpectJsonError(Client().Get("/api/v1/scans/..%2f..%2fetc"), 404, "no such endpoint");
+  EXPECT_TRUE(fs::exists(outside));
+  EXPECT_EQ(ReadFile(store_->Path(id)), before);
+  ExpectJsonError(Client().Get("/api/v1/scans/20991231T235959Z-9999"), 404,
+                  "20991231T235959Z-9999");
+}
+
+TEST_F(ApiServerTest, OversizedBodiesAreRefused) {
+  const std::string huge(5u << 20, ' ');
+  ExpectJsonError(Client().Put("/api/v1/calibration", Auth(), huge, "application/json"), 413,
+                  "too large");
+  auto res = Client().Get("/api/v1/status");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_FALSE(calibration_->Get().has_value());
+}
+
+TEST_F(ApiServerTest, CalibrationIsValidatedThenStored) {
+  ExpectJsonError(Client().Get("/api/v1/calibration"), 404, "no calibration");
+  ExpectJsonError(Client().Put("/api/v1/calibration", Auth(), "{oops", "application/json"), 400,
+                  "not valid JSON");
+  const std::string text =
+      ReadFile(fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json");
+  json one_mirror = json::parse(text);
+  one_mirror["mirrors"].erase(1);
+  ExpectJsonError(
+      Client().Put("/api/v1/calibration", Auth(), one_mirror.dump(), "application/json"), 400,
+      "calibration: mirrors: expected two mirrors");
+  EXPECT_FALSE(fs::exists(dir_ / "calibration.json"));
+  auto put = Client().Put("/api/v1/calibration", Auth(), text, "application/json");
+  ASSERT_TRUE(put);
+  EXPECT_EQ(put->status, 200) << put->body;
+  EXPECT_EQ(json::parse(put->body).at("sha256"), Sha256Of(text));
+  EXPECT_EQ(ReadFile(dir_ / "calibration.json"), text);
+
+  auto get = Client().Get("/api/v1/calibration");
+  ASSERT_TRUE(get);
+  EXPECT_EQ(get->body, text);
+  EXPECT_EQ(get->get_header_value("X-Mirrorscan-Calibration-SHA256"), Sha256Of(text));
+  auto status = Client().Get("/api/v1/status");
+  EXPECT_EQ(json::parse(status->body).at("calibration_sha256"), Sha256Of(text));
+}
+
+TEST_F(ApiServerTest, CaptureReturnsAGrayImage) {
+  auto res = Client().Post("/api/v1/captures", Auth(), R"({"camera":"lower","lasers_on":true})",
+                           "application/json");
+  ASSERT_TRUE(res);
+  ASSERT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(res->get_header_value("Content-Type"), "image/x-portable-graymap");
+  EXPECT_EQ(res->get_header_value("X-Mirrorscan-Lasers-On"), "1");
+  const std::string header = "P5\n64 48\n255\n";
+  ASSERT_EQ(res->body.size(), header.size() + 64 * 48);
+  EXPECT_EQ(res->body.substr(0, header.size()), header);
+  EXPECT_EQ(static_cast<uint8_t>(res->body[header.size() + 65]), 4 + 1);
+
+  ExpectJsonError(
+      Client().Post("/api/v1/captures", Auth(), R"({"camera":"side"})", "application/json"), 400,
+      "no camera \"side\"");
+  ExpectJsonError(Client().Post("/api/v1/captures", Auth(), R"({"camera":"upper","laser":1})",
+                                "application/json"),
+                  400, "laser");
+  ExpectJsonError(Client().Post("/api/v1/captures", Auth(), "", "application/json"), 400,
+                  "request body");
+}
+
+TEST_F(ApiServerTest, BusyDeviceRefusesWithConflict) {
+  Restart({.frames = 40, .frame_interval = std::chrono::milliseconds(20), .peaks_per_frame = 10});
+  const std::string id = StartScan();
+  ExpectJsonError(Client().Post("/api/v1/scans", Auth(), "", "application/json"), 409, "running");
+  ExpectJsonError(Client().Delete(("/api/v1/scans/" + id).c_str(), Auth()), 409, "");
+  ExpectJsonError(
+      Client().Post("/api/v1/captures", Auth(), R"({"camera":"upper"})", "application/json"), 409,
+      "running");
+  control_->Join();
+  auto del = Client().Delete(("/api/v1/scans/" + id).c_str(), Auth());
+  ASSERT_TRUE(del);
+  EXPECT_EQ(del->status, 200);
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id), 404, id);
+  ExpectJsonError(Client().Post("/api/v1/scans", Auth(), "[1]", "application/json"), 400,
+                  "request body");
+}
+
+TEST_F(ApiServerTest, UnknownEndpointIsAJson404) {
+  ExpectJsonError(Client().Get("/api/v2/status"), 404, "no such endpoint");
+  ExpectJsonError(Client().Get("/"), 404, "no such endpoint");
+}
+
+// Raw bytes to 127.0.0.1:port; reads whatever comes back (bounded by a short timeout).
+std::string RawExchange(int port, const std::string& request) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return "";
+  timeval timeout{0, 300000};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string reply;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0) {
+    ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+    ::shutdown(fd, SHUT_WR);
+    char buffer[4096];
+    for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0 && reply.size() < (1 << 20);) {
+      reply.append(buffer, static_cast<size_t>(n));
+    }
+  }
+  ::close(fd);
+  return reply;
+}
+
+// Requests built from valid pieces, then cut, mutated or replaced by random bytes.
+std::string RandomRequest(std::mt19937& rng, const std::string& id) {
+  auto pick = [&](const std::vector<std::string>& v) { return v[rng() % v.size()]; };
+  const std::string method =
+      pick({"GET", "POST", "PUT", "DELETE", "PATCH", "HEAD", "OPTIONS", "G\x01T", "", "GET GET"});
+  const std::string path = pick({"/api/v1/status", "/api/v1/scans", "/api/v1/scans/" + id,
+                                 "/api/v1/scans/" + id + "/archive", "/api/v1/scans/../../x",
+                                 "/api/v1/scans/" + id + "/archive?follow=1&offset=99999999999",
+                                 "/api/v1/events?x=%zz", "/api/v1/calibration", "/api/v1/captures",
+                                 "%%%", "/" + std::string(rng() % 9000, 'a'), "*"});
+  std::string request =
+      method + " " + path + " " + pick({"HTTP/1.1", "HTTP/1.0", "HTTP/9", ""}) + "\r\n";
+  const int headers = static_cast<int>(rng() % 5);
+  for (int i = 0; i < headers; ++i) {
+    request +=
+        pick({"Host: x", "Authorization: Bearer " + std::string(kToken) + "x",
+              "Authorization: Bearer", "Range: bytes=" + std::to_string(rng() % 100000) + "-",
+              "Range: bytes=-" + std::to_string(rng()), "Range: bytes=5-1,2-3,junk",
+              "Content-Length: " + std::to_string(rng() % 100), "Content-Length: -5",
+              "Content-Length: 99999999999999999999", "Transfer-Encoding: chunked",
+              "Connection: close", "X: \x7f\xff\r", std::string(rng() % 10000, 'h') + ": v"}) +
+        "\r\n";
+  }
+  request += "\r\n";
+  request += pick({"", "{}", "{\"camera\":", "zz\r\n", "5\r\nhello\r\n0\r\n\r\n"});
+  switch (rng() % 4) {
+    case 0:
+      request.resize(rng() % (request.size() + 1));
+      break;  // cut anywhere
+    case 1:
+      for (int i = 0; i < 4 && !request.empty(); ++i) {
+        request[rng() % request.size()] = static_cast<char>(rng());
+      }
+      break;
+    case 2: {
+      std::string noise(rng() % 2048, '\0');
+      for (char& c : noise) c = static_cast<char>(rng());
+      request = noise;
+      break;
+    }
+    default:
+      break;
+  }
+  return request;
+}
+
+TEST_F(ApiServerTest, SurvivesThousandsOfMalformedAndConcurrentRequests) {
+  const std::string id = CompletedScan();
+  const std::string archive_before = ReadFile(store_->Path(id));
+  const std::string meta_before = ReadFile(dir_ / "scans" / (id + ".json"));
+  constexpr int kThreads = 4;
+  constexpr int kRequestsPerThread = 750;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(40);
+  std::atomic<int> sent{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      std::mt19937 rng(1234 + t);
+      for (int i = 0; i < kRequestsPerThread && std::chrono::steady_clock::now() < deadline; ++i) {
+        RawExchange(port_, RandomRequest(rng, id));
+        ++sent;
+      }
+    });
+  }
+  // Well-formed requests keep being answered meanwhile.
+  int good = 0;
+  while (sent < kThreads * kRequestsPerThread / 2 && std::chrono::steady_clock::now() < deadline) {
+    auto res = Client().Get("/api/v1/scans/" + id);
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 200);
+    ++good;
+  }
+  for (auto& t : threads) t.join();
+  std::printf("sent %d random requests; %d good requests answered meanwhile\n", sent.load(), good);
+  EXPECT_GE(sent.load(), 2000);
+  auto status = Client().Get("/api/v1/status");
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  auto archive = Client().Get("/api/v1/scans/" + id + "/archive");
+  ASSERT_TRUE(archive);
+  EXPECT_EQ(archive->body, archive_before);
+  EXPECT_EQ(ReadFile(store_->Path(id)), archive_before);
+  EXPECT_EQ(ReadFile(dir_ / "scans" / (id + ".json")), meta_before);
+  EXPECT_EQ(store_->List().size(), 1u);
+}
+
+}  // namespace
+}  // namespace mirrorscan::service

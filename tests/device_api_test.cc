@@ -1,0 +1,323 @@
+// The device API end to end on loopback: the real ApiServer and ScanStore (TestScanControl
+// stands in for the sequencer), the host's DeviceClient and the `mirrorscan device` CLI.
+// Downloads cut mid-way (TcpCutProxy) must resume to identical bytes; a followed stream
+// must equal the finished archive; a corrupted download must be refused.
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "common/protocol/sha256.h"
+#include "common/scan_format/scan_format.h"
+#include "firmware/service/api_server.h"
+#include "firmware/service/test_scan_control.h"
+#include "host/client/device_client.h"
+#include "tests/tcp_cut_proxy.h"
+
+namespace mirrorscan {
+namespace {
+
+namespace fs = std::filesystem;
+using client::DeviceClient;
+using client::DeviceError;
+using nlohmann::json;
+using test_util::TcpCutProxy;
+
+constexpr char kToken[] = "virtual-dev-token-not-a-secret";
+const fs::path kCalibration =
+    fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json";
+
+std::string ReadFile(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+struct CliResult {
+  int exit_code;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+class DeviceApiTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("mirrorscan_device_api_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "host");
+    board_ =
+        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/board.json");
+    store_ = store::ScanStore::Open(dir_ / "device" / "scans");
+    // ~0.9 MB archives, written over ~1 s, so cuts land mid-stream and follows see a live scan.
+    control_ = std::make_unique<service::TestScanControl>(
+        *store_, service::TestScanControl::Options{.frames = 100,
+                                                   .frame_interval = std::chrono::milliseconds(10),
+                                                   .peaks_per_frame = 500});
+    calibration_ =
+        std::make_unique<service::CalibrationStore>(dir_ / "device" / "calibration.json");
+    server_ =
+        std::make_unique<service::ApiServer>(*store_, *control_, board_, *calibration_, kToken,
+                                             service::ApiServerOptions{.firmware_version = "test"});
+    port_ = server_->Start("127.0.0.1:0");
+  }
+
+  void TearDown() override {
+    server_.reset();
+    control_.reset();
+    store_.reset();
+    fs::remove_all(dir_);
+  }
+
+  std::string Host(int port = 0) const {
+    return "127.0.0.1:" + std::to_string(port ? port : port_);
+  }
+
+  DeviceClient Client(int port = 0, const std::string& token = kToken) const {
+    return DeviceClient(Host(port), token,
+                        client::DeviceClientOptions{.retry_delay = std::chrono::milliseconds(20)});
+  }
+
+  std::string CompletedScan() {
+    const std::string id = Client().StartScan();
+    control_->Join();
+    return id;
+  }
+
+  // Runs the CLI in dir_/host with `environment` prepended.
+  CliResult Run(const std::string& arguments, const std::string& environment = "") const {
+    const fs::path err = dir_ / "stderr.txt";
+    const std::string command = "cd " + (dir_ / "host").string() + " && env -u MIRRORSCAN_TOKEN " +
+                                environment + " " + MIRRORSCAN_BIN_DIR + "/mirrorscan " +
+                                arguments + " 2>" + err.string();
+    FILE* pipe = ::popen(command.c_str(), "r");
+    std::string out;
+    std::array<char, 4096> buffer;
+    while (size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe))
+      out.append(buffer.data(), n);
+    const int status = ::pclose(pipe);
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, ReadFile(err)};
+  }
+
+  fs::path dir_;
+  board::BoardConfig board_;
+  std::unique_ptr<store::ScanStore> store_;
+  std::unique_ptr<service::TestScanControl> control_;
+  std::unique_ptr<service::CalibrationStore> calibration_;
+  std::unique_ptr<service::ApiServer> server_;
+  int port_ = 0;
+};
+
+TEST_F(DeviceApiTest, ClientCallsAndErrors) {
+  DeviceClient device = Client();
+  EXPECT_EQ(device.Status().board, "virtual");
+  const std::string id = CompletedScan();
+  const auto scans = device.List();
+  ASSERT_EQ(scans.size(), 1u);
+  EXPECT_EQ(scans[0].id, id);
+  EXPECT_EQ(device.Get(id).frames, 100u);
+
+  const std::string calibration = ReadFile(kCalibration);
+  const std::string sha = device.PutCalibration(calibration);
+  EXPECT_EQ(device.GetCalibration(), calibration);
+  EXPECT_EQ(device.Status().calibration_sha256, sha);
+  const std::string pgm = device.Capture("upper", false);
+  EXPECT_EQ(pgm.rfind("P5\n64 48\n255\n", 0), 0u);
+
+  try {
+    Client(0, "").Delete(id);
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_EQ(e.status(), 401);
+    EXPECT_EQ(e.code(), "unauthorized");
+    EXPECT_NE(std::string(e.what()).find("missing bearer token"), std::string::npos) << e.what();
+  }
+  try {
+    device.Get("20991231T235959Z-9999");
+    FAIL();
+  } catch (const DeviceError& e) {
+    EXPECT_EQ(e.status(), 404);
+  }
+  EXPECT_THROW(device.Get("../etc"), DeviceError);
+  device.Delete(id);
+  EXPECT_TRUE(device.List().empty());
+}
+
+TEST_F(DeviceApiTest, FetchResumesAfterDroppedConnectionsToIdenticalBytes) {
+  const std::string id = CompletedScan();
+  const std::string on_disk = ReadFile(store_->Path(id));
+  ASSERT_GT(on_disk.size(), 500000u);
+  // Cut the first two connections after 200 kB each (headers included).
+  TcpCutProxy proxy(port_, 200000, 2);
+  const fs::path out = dir_ / "host" / "scan.mscan";
+  uint64_t last_progress = 0;
+  const client::FetchResult r =
+      Client(proxy.port()).Fetch(id, out, [&](const client::TransferProgress& p) {
+        EXPECT_GE(p.bytes, last_progress > 0 && p.reconnects == 0 ? last_progress : 0u);
+        last_progress = p.bytes;
+        EXPECT_EQ(p.total, on_disk.size());
+      });
+  EXPECT_EQ(proxy.damaged(), 2);
+  EXPECT_EQ(r.reconnects, 2);
+  EXPECT_EQ(ReadFile(out), on_disk);
+  EXPECT_EQ(r.sha256, protocol::Sha256::HexOfFile(store_->Path(id)));
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+}
+
+TEST_F(DeviceApiTest, FetchResumesAPartialFileFromAnEarlierRun) {
+  const std::string id = CompletedScan();
+  const std::string on_disk = ReadFile(store_->Path(id));
+  const fs::path out = dir_ / "host" / "scan.mscan";
+  std::ofstream(out.string() + ".partial", std::ios::binary) << on_disk.substr(0, 12345);
+  uint64_t first_progress = 0;
+  Client().Fetch(id, out, [&](const client::TransferProgress& p) {
+    if (first_progress == 0) first_progress = p.bytes;
+  });
+  EXPECT_GT(first_progress, 12345u);  // it went on from there
+  EXPECT_EQ(ReadFile(out), on_disk);
+}
+
+TEST_F(DeviceApiTest, CorruptedDownloadIsRefusedAndDiscarded) {
+  const std::string id = CompletedScan();
+  TcpCutProxy proxy(port_, 300000, 1, TcpCutProxy::Mode::kCorrupt);
+  const fs::path out = dir_ / "host" / "scan.mscan";
+  try {
+    Client(proxy.port()).Fetch(id, out);
+    FAIL() << "a corrupted download was accepted";
+  } catch (const DeviceError& e) {
+    EXPECT_EQ(e.code(), "checksum");
+    EXPECT_NE(std::string(e.what()).find("SHA-256 mismatch"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(proxy.damaged(), 1);
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(out.string() + ".partial"));
+}
+
+TEST_F(DeviceApiTest, FollowedStreamWithADropEqualsTheFinishedArchive) {
+  const std::string id = Client().StartScan();
+  TcpCutProxy proxy(port_, 150000, 1);
+  DeviceClient device = Client(proxy.port());
+  const fs::path out = dir_ / "host" / "live.mscan";
+  uint64_t frames_while_running = 0;
+  const client::FetchResult r = device.Follow(id, out, [&](const client::TransferProgress& p) {
+    if (control_->Status().state == scan::SequencerState::kSweeping)
+      frames_while_running = p.frames;
+  });
+  control_->Join();
+  EXPECT_GT(frames_while_running, 0u) << "no frame arrived before the sweep ended";
+  EXPECT_EQ(proxy.damaged(), 1);
+  EXPECT_EQ(r.reconnects, 1);
+  EXPECT_EQ(ReadFile(out), ReadFile(store_->Path(id)));
+  const ScanArchive archive = ReadScanFile(out);
+  EXPECT_TRUE(archive.report.complete) << archive.report.message;
+  EXPECT_EQ(archive.frames.size(), 100u);
+}
+
+TEST_F(DeviceApiTest, CliScanWaitThenFetchGivesTheArchiveByteForByte) {
+  const CliResult scan = Run("device scan --wait --json --host " + Host() + " --token " + kToken);
+  ASSERT_EQ(scan.exit_code, 0) << scan.err;
+  const json started = json::parse(scan.out);
+  const std::string id = started.at("id");
+  EXPECT_EQ(started.at("state"), "done");
+  EXPECT_EQ(started.at("frames"), 100);
+
+  const CliResult list = Run("device list --json --host " + Host());
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_EQ(json::parse(list.out).at(0).at("id"), id);
+
+  // Through a proxy that drops the first connection: resumed, verified, ID.mscan here.
+  TcpCutProxy proxy(port_, 100000, 1);
+  const CliResult fetch = Run("device fetch " + id + " --host " + Host(proxy.port()));
+  ASSERT_EQ(fetch.exit_code, 0) << fetch.err;
+  EXPECT_NE(fetch.err.find("verified, resumed 1x"), std::string::npos) << fetch.err;
+  EXPECT_EQ(ReadFile(dir_ / "host" / (id + ".mscan")), ReadFile(store_->Path(id)));
+
+  const CliResult status = Run("device status --host " + Host());
+  ASSERT_EQ(status.exit_code, 0) << status.err;
+  EXPECT_NE(status.out.find("board virtual"), std::string::npos) << status.out;
+  EXPECT_NE(status.out.find("done"), std::string::npos) << status.out;
+}
+
+TEST_F(DeviceApiTest, CliScanFollowStreamsTheArchiveLive) {
+  const CliResult scan = Run("device scan --follow --json --out live.mscan --host " + Host(),
+                             std::string("MIRRORSCAN_TOKEN=") + kToken);
+  ASSERT_EQ(scan.exit_code, 0) << scan.err;
+  const json result = json::parse(scan.out);
+  const std::string id = result.at("id");
+  EXPECT_EQ(result.at("state"), "complete");
+  EXPECT_EQ(ReadFile(dir_ / "host" / "live.mscan"), ReadFile(store_->Path(id)));
+  EXPECT_EQ(result.at("sha256"), protocol::Sha256::HexOfFile(store_->Path(id)));
+}
+
+TEST_F(DeviceApiTest, CliRefusesWithoutTokenAndExplains) {
+  const std::string id = CompletedScan();
+  const CliResult denied = Run("device delete " + id + " --host " + Host());
+  EXPECT_EQ(denied.exit_code, 1);
+  EXPECT_NE(denied.err.find("missing bearer token"), std::string::npos) << denied.err;
+  EXPECT_NE(denied.err.find("401"), std::string::npos) << denied.err;
+  const CliResult wrong =
+      Run("device delete " + id + " --host " + Host() + " --token wrong-token-0123456789");
+  EXPECT_EQ(wrong.exit_code, 1);
+  EXPECT_NE(wrong.err.find("wrong bearer token"), std::string::npos) << wrong.err;
+  EXPECT_EQ(store_->List().size(), 1u);
+  const CliResult deleted =
+      Run("device delete " + id + " --host " + Host(), std::string("MIRRORSCAN_TOKEN=") + kToken);
+  EXPECT_EQ(deleted.exit_code, 0) << deleted.err;
+  EXPECT_TRUE(store_->List().empty());
+
+  const CliResult unreachable = Run("device status --host 127.0.0.1:1");
+  EXPECT_EQ(unreachable.exit_code, 1);
+  EXPECT_NE(unreachable.err.find("cannot reach the device at 127.0.0.1:1"), std::string::npos)
+      << unreachable.err;
+  const CliResult bad_id = Run("device fetch ../../etc/passwd --host " + Host());
+  EXPECT_EQ(bad_id.exit_code, 1);
+  EXPECT_NE(bad_id.err.find("not a scan id"), std::string::npos) << bad_id.err;
+}
+
+TEST_F(DeviceApiTest, CliCalibrationAndCapture) {
+  const fs::path calibration = dir_ / "host" / "calibration.json";
+  json one_mirror = json::parse(ReadFile(kCalibration));
+  one_mirror["mirrors"].erase(1);
+  std::ofstream(calibration) << one_mirror.dump();
+  const std::string auth = std::string("MIRRORSCAN_TOKEN=") + kToken;
+  const CliResult refused = Run("device calibration put calibration.json --host " + Host(), auth);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("mirrors: expected two mirrors"), std::string::npos) << refused.err;
+  fs::copy_file(kCalibration, calibration, fs::copy_options::overwrite_existing);
+  const CliResult put =
+      Run("device calibration put calibration.json --json --host " + Host(), auth);
+  ASSERT_EQ(put.exit_code, 0) << put.err;
+  EXPECT_EQ(json::parse(put.out).at("sha256"), protocol::Sha256::HexOfFile(calibration));
+  const CliResult get = Run("device calibration get --out back.json --host " + Host());
+  ASSERT_EQ(get.exit_code, 0) << get.err;
+  EXPECT_EQ(ReadFile(dir_ / "host" / "back.json"), ReadFile(calibration));
+
+  const CliResult capture = Run("device capture --camera upper --lasers --host " + Host(), auth);
+  ASSERT_EQ(capture.exit_code, 0) << capture.err;
+  EXPECT_EQ(ReadFile(dir_ / "host" / "upper-lasers.pgm").rfind("P5\n64 48\n255\n", 0), 0u);
+}
+
+TEST_F(DeviceApiTest, HelpNamesEverySubcommand) {
+  const CliResult help = Run("device --help");
+  EXPECT_EQ(help.exit_code, 0);
+  for (const char* sub : {"status", "list", "scan", "fetch", "delete", "calibration", "capture",
+                          "discover", "--host", "--token", "MIRRORSCAN_TOKEN", "--json"}) {
+    EXPECT_NE(help.out.find(sub), std::string::npos) << sub;
+  }
+  for (const char* sub : {"status", "list", "scan", "fetch", "delete", "calibration get",
+                          "calibration put", "capture", "discover"}) {
+    const CliResult h = Run(std::string("device ") + sub + " --help");
+    EXPECT_EQ(h.exit_code, 0) << sub;
+    EXPECT_NE(h.out.find("Usage:"), std::string::npos) << sub;
+  }
+}
+
+}  // namespace
+}  // namespace mirrorscan
