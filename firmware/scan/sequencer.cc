@@ -7,8 +7,8 @@
 #include <sstream>
 
 #include <spdlog/spdlog.h>
-#include <zlib.h>
 
+#include "common/protocol/sha256.h"
 #include "firmware/hal/clock.h"
 
 namespace mirrorscan::scan {
@@ -28,19 +28,12 @@ std::string UtcNow() {
   return text;
 }
 
-// "crc32:1a2b3c4d" of data_dir/calibration.json, null when there is none.
-nlohmann::json CalibrationHash(const std::filesystem::path& data_dir) {
+// The SHA-256 of data_dir/calibration.json, as the device API's status reports it (one
+// identifier for "which calibration"); null when there is none.
+nlohmann::json CalibrationSha256(const std::filesystem::path& data_dir) {
   const std::filesystem::path file = data_dir / "calibration.json";
-  std::ifstream in(file, std::ios::binary);
-  if (data_dir.empty() || !in) return nullptr;
-  std::ostringstream content;
-  content << in.rdbuf();
-  const std::string bytes = content.str();
-  const uLong crc = crc32(crc32(0L, Z_NULL, 0), reinterpret_cast<const Bytef*>(bytes.data()),
-                          static_cast<uInt>(bytes.size()));
-  char text[16];
-  std::snprintf(text, sizeof text, "%08lx", crc);
-  return std::string("crc32:") + text;
+  if (data_dir.empty() || !std::filesystem::exists(file)) return nullptr;
+  return protocol::Sha256::HexOfFile(file);
 }
 
 std::string_view FooterStatus(SequencerState end) {
@@ -275,7 +268,7 @@ nlohmann::json Sequencer::Header(const std::string& origin) const {
   return {{"device", options_.device},
           {"board", options_.board},
           {"firmware_version", options_.firmware_version},
-          {"calibration_hash", CalibrationHash(options_.data_dir)},
+          {"calibration_sha256", CalibrationSha256(options_.data_dir)},
           {"cameras", cameras},
           {"lasers", {{"count", devices_.lasers->count()}}},
           {"slide",

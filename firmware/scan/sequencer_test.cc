@@ -13,6 +13,7 @@
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <memory>
@@ -24,6 +25,7 @@
 #include <gtest/gtest.h>
 
 #include "boards/virtual/drive_sim/drive_sim.h"
+#include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "firmware/hal/clock.h"
 #include "firmware/hal/gpio_factory.h"
@@ -255,6 +257,19 @@ class SequencerTest : public ::testing::Test {
   std::vector<ScanEvent> events_;
 };
 
+// The archive names the calibration it was taken with by the same SHA-256 the device API
+// reports for the stored calibration.json.
+TEST_F(SequencerTest, HeaderNamesTheStoredCalibrationBySha256) {
+  fs::create_directories(dir_ / "data");
+  const fs::path calibration = dir_ / "data" / "calibration.json";
+  std::ofstream(calibration) << R"({"schema": "mirrorscan.calibration"})";
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kComplete, "complete");
+  EXPECT_EQ(archive.header["calibration_sha256"], protocol::Sha256::HexOfFile(calibration));
+}
+
 TEST_F(SequencerTest, CompleteScanStoresEveryFramesPeaks) {
   MakeSequencer();
   const std::string id = sequencer_->StartScan("test");
@@ -269,7 +284,7 @@ TEST_F(SequencerTest, CompleteScanStoresEveryFramesPeaks) {
   EXPECT_EQ(archive.header["origin"], "test");
   EXPECT_EQ(archive.header["board"], "test");
   EXPECT_EQ(archive.header["cameras"].size(), 2u);
-  EXPECT_TRUE(archive.header["calibration_hash"].is_null());
+  EXPECT_TRUE(archive.header["calibration_sha256"].is_null());
   const nlohmann::json& footer = *archive.footer;
   EXPECT_EQ(footer["dropped"], 0);
 
