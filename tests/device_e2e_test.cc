@@ -1,5 +1,5 @@
-// The whole appliance on loopback: mirrorscand on the virtual board (replay cameras for
-// speed; the drive, GPIO, sequencer, store and device API are the real ones), driven by the
+// The whole appliance on loopback: mirrorscand on the virtual board (rendered cameras,
+// simulated drive over Modbus, virtual GPIO, the real sequencer, store and API), driven by the
 // `mirrorscan device` CLI: a scan started and followed to its end, the archive fetched and
 // compared byte for byte with the store's file, and a live --follow of a second scan.
 #include <fcntl.h>
@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <thread>
 
@@ -23,7 +24,6 @@
 
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
-#include "firmware/hal/replay/replay_camera.h"
 
 extern char** environ;
 
@@ -102,30 +102,13 @@ class DeviceEndToEndTest : public ::testing::Test {
     fs::remove_all(dir_);
   }
 
-  // The virtual board with a 300 mm sweep (2 s) and replay cameras playing a 160 x 120
-  // stripe instead of the renderer.
+  // The virtual board as shipped (both cameras rendering the mannequin), with the sweep
+  // shortened to 300 mm (2 s) to keep the test short.
   fs::path WriteBoard() {
     json board = json::parse(ReadFile(kSource / "boards/virtual/board.json"));
-    board["scan"]["sweep_start_mm"] = 200;
-    board["scan"]["sweep_end_mm"] = 500;
+    board["scan"]["sweep_start_mm"] = 700;
+    board["scan"]["sweep_end_mm"] = 1000;
     board["virtual"]["scene"] = (kSource / "boards/virtual/scenes/mannequin.json").string();
-    for (int c = 0; c < 2; ++c) {
-      const fs::path frames = dir_ / ("frames" + std::to_string(c));
-      fs::create_directories(frames);
-      std::vector<uint8_t> pixels(160 * 120);
-      for (int v = 0; v < 120; ++v) {
-        const double d = (v - 60.0) / 1.2;
-        std::fill_n(pixels.begin() + v * 160, 160,
-                    static_cast<uint8_t>(20 + 180 * std::exp(-0.5 * d * d)));
-      }
-      hal::WritePgm(frames / "0.pgm", 160, 120, pixels.data());
-      auto& camera = board["cameras"][c];
-      camera.erase("id");
-      camera["backend"] = "replay";
-      camera["path"] = frames.string();
-      camera["width"] = 160;
-      camera["height"] = 120;
-    }
     const fs::path file = dir_ / "board.json";
     std::ofstream(file) << board.dump(2);
     return file;
@@ -169,6 +152,13 @@ TEST_F(DeviceEndToEndTest, ScanWaitFetchAndFollowMatchTheStoredArchive) {
   EXPECT_TRUE(read.report.complete) << read.report.message;
   EXPECT_EQ(read.header.value("board", ""), "virtual");
   EXPECT_EQ(read.header.value("origin", ""), "api");
+  // Both cameras saw the laser ring on the mannequin in every frame.
+  std::map<int, int> frames_with_peaks;
+  for (const FrameRecord& frame : read.frames) {
+    if (!frame.peaks.empty()) ++frames_with_peaks[frame.camera];
+  }
+  EXPECT_EQ(frames_with_peaks.size(), 2u);
+  EXPECT_EQ(frames_with_peaks[0] + frames_with_peaks[1], static_cast<int>(read.frames.size()));
 
   // A second scan streamed live while it runs equals the finished archive.
   const CliResult follow = Run("device scan --follow --json --out live.mscan");
