@@ -1,8 +1,6 @@
 // mirrorscan calibrate-intrinsics and calibrate-lasers end to end: files written, figures
 // against the library and the virtual cabinet's truth, one clear line on bad input.
-#include <array>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -13,26 +11,19 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "host/calibration/intrinsics.h"
+#include "tests/support/process.h"
 
 namespace mirrorscan {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
+using Result = test_support::CommandResult;
 
+// mirrorscan with `arguments`; stdout and stderr together in .out.
 Result RunMirrorscan(const std::string& arguments) {
-  const std::string command =
-      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string output;
-  std::array<char, 4096> buffer;
-  while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+  return test_support::RunCommand(
+      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1", "/dev/null");
 }
 
 fs::path TempDir(const std::string& name) {
@@ -63,8 +54,8 @@ TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
   ASSERT_TRUE(fs::exists(images[0])) << "install opencv-doc (scripts/setup)";
   const Result r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --square 25" + arguments +
                                  " --out " + (dir / "intrinsics.json").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("[13/13]"), std::string::npos) << r.output;  // progress
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("[13/13]"), std::string::npos) << r.out;  // progress
   const nlohmann::json json = ReadJson(dir / "intrinsics.json");
   CalibrationPattern pattern;
   pattern.square_mm = 25;
@@ -87,13 +78,13 @@ TEST(CalibrateCli, IntrinsicsBadInputIsOneClearLine) {
   Result r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --square 25 " +
                            (kSamples / "left01.jpg").string() + " " + blank.string() + out);
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.output.find("\nmirrorscan: " + blank.string() + ": no 9x6 chessboard found\n"),
+  EXPECT_NE(r.out.find("\nmirrorscan: " + blank.string() + ": no 9x6 chessboard found\n"),
             std::string::npos)
-      << r.output;
+      << r.out;
   r = RunMirrorscan("calibrate-intrinsics --chessboard 9x6 --charuco 5x7 --square 25 " +
                     blank.string() + out);
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_EQ(r.output,
+  EXPECT_EQ(r.out,
             "mirrorscan: give exactly one of --chessboard COLSxROWS or --charuco COLSxROWS\n");
   EXPECT_FALSE(fs::exists(dir / "i.json"));
   fs::remove_all(dir);
@@ -111,7 +102,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
                                  " --calibration " + (dir / "calibration.json").string() +
                                  " --out " + (dir / "lasers.json").string() +
                                  " --calibration-out " + (dir / "fitted.json").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.out;
   const nlohmann::json lasers = ReadJson(dir / "lasers.json");
   ASSERT_EQ(lasers["frames"].size(), 30u);  // 15 instants, 2 cameras
   for (const nlohmann::json& frame : lasers["frames"]) {
@@ -135,9 +126,8 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
       RunMirrorscan("calibrate-lasers " + (dir / "scan.mscan").string() + " --calibration " +
                     (dir / "no_corners.json").string() + " --out " + (dir / "x.json").string());
   EXPECT_EQ(bad.exit_code, 1);
-  EXPECT_EQ(bad.output,
-            "mirrorscan: " + (dir / "no_corners.json").string() +
-                ": mirrors[0].corners_mm: the laser fit needs the mirror's 4 corners\n");
+  EXPECT_EQ(bad.out, "mirrorscan: " + (dir / "no_corners.json").string() +
+                         ": mirrors[0].corners_mm: the laser fit needs the mirror's 4 corners\n");
   fs::remove_all(dir);
 }
 

@@ -1,7 +1,5 @@
 // The mirrorscan command line end to end: sim scan --peaks writes a complete archive;
 // peaks --csv prints what the extractor finds; bad input gives one clear line.
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -13,26 +11,19 @@
 #include "common/config/calibration.h"
 #include "common/peaks/peaks.h"
 #include "common/scan_format/scan_format.h"
+#include "tests/support/process.h"
 
 namespace mirrorscan {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Result {
-  int exit_code;
-  std::string output;  // stdout and stderr
-};
+using Result = test_support::CommandResult;
 
+// mirrorscan with `arguments`; stdout and stderr together in .out.
 Result RunMirrorscan(const std::string& arguments) {
-  const std::string command =
-      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  std::string output;
-  std::array<char, 4096> buffer;
-  while (size_t n = fread(buffer.data(), 1, buffer.size(), pipe)) output.append(buffer.data(), n);
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+  return test_support::RunCommand(
+      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1", "/dev/null");
 }
 
 std::string Scene(const std::string& name) {
@@ -52,7 +43,7 @@ TEST(CliTest, SimScanWritesACompletePeakArchive) {
   const Result r =
       RunMirrorscan("sim scan --scene " + Scene("cylinder") + " --out " + dir.string() +
                     " --frames 4 --peaks " + (dir / "scan.mscan").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.out;
   const ScanArchive archive = ReadScanFile(dir / "scan.mscan");
   EXPECT_TRUE(archive.report.complete) << archive.report.message;
   ASSERT_EQ(archive.frames.size(), 8u);  // 4 frames × 2 cameras, in order
@@ -81,8 +72,8 @@ TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
   // The virtual board's parameters are the extractor's defaults.
   const Result r = RunMirrorscan("peaks --csv --board " + std::string(MIRRORSCAN_SOURCE_DIR) +
                                  "/boards/virtual/board.json " + image.string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::istringstream lines(r.output);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::istringstream lines(r.out);
   std::string line;
   std::getline(lines, line);
   EXPECT_EQ(line, "image,u,v,intensity,width,score");
@@ -108,7 +99,7 @@ TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
   const fs::path dir = TempDir("calibrate");
   Result r = RunMirrorscan("sim render --no-lasers --scene " + Scene("calibration") + " --out " +
                            dir.string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.out;
   const std::string board = std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/board.json";
   std::string upper, lower;
   for (const auto& entry : fs::directory_iterator(dir)) {
@@ -123,7 +114,7 @@ TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
   const fs::path out = dir / "cal.json";
   r = RunMirrorscan("calibrate" + images + " --board " + board + " --out " + out.string() +
                     " --report " + (dir / "report").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_EQ(r.exit_code, 0) << r.out;
   const Calibration calibration = Calibration::Load(out);
   EXPECT_EQ(calibration.cameras.size(), 2u);
   EXPECT_LE(calibration.residuals.reprojection_rms_px, 0.15);
@@ -133,8 +124,8 @@ TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
 
   r = RunMirrorscan("calibrate --image upper=" + upper + " --board " + board + " --verify " +
                     out.string() + " --json");
-  EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_NE(r.output.find("\"ok\": true"), std::string::npos) << r.output;
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("\"ok\": true"), std::string::npos) << r.out;
 
   // Limits no image can meet: a clear failure, and no calibration.json.
   nlohmann::json strict = JsonReader::ParseFile(board);
@@ -143,13 +134,13 @@ TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
   r = RunMirrorscan("calibrate" + images + " --board " + (dir / "strict.json").string() +
                     " --out " + (dir / "strict-cal.json").string());
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.output.find("camera upper, center view: markers lie"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("mirrorscan: calibration failed (see above); "), std::string::npos);
+  EXPECT_NE(r.out.find("camera upper, center view: markers lie"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mirrorscan: calibration failed (see above); "), std::string::npos);
   EXPECT_FALSE(fs::exists(dir / "strict-cal.json"));
 
   r = RunMirrorscan("calibrate --image side=" + upper + " --board " + board + " --out x.json");
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_EQ(r.output, "mirrorscan: camera \"side\" is not in the board's cameras\n");
+  EXPECT_EQ(r.out, "mirrorscan: camera \"side\" is not in the board's cameras\n");
   fs::remove_all(dir);
 }
 
@@ -159,12 +150,12 @@ TEST(CliTest, BadInputGivesOneClearLineAndNonZeroExit) {
   Result r =
       RunMirrorscan("sim render --scene " + (dir / "bad.json").string() + " --out " + dir.string());
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_EQ(r.output, "mirrorscan: " + (dir / "bad.json").string() +
-                          ": lasers.count: must be in [1, 3], got 9\n");
+  EXPECT_EQ(r.out, "mirrorscan: " + (dir / "bad.json").string() +
+                       ": lasers.count: must be in [1, 3], got 9\n");
   std::ofstream(dir / "not.png") << "not an image";
   r = RunMirrorscan("peaks " + (dir / "not.png").string());
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_NE(r.output.find("cannot read the image"), std::string::npos) << r.output;
+  EXPECT_NE(r.out.find("cannot read the image"), std::string::npos) << r.out;
   fs::remove_all(dir);
 }
 

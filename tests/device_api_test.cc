@@ -2,12 +2,8 @@
 // stands in for the sequencer), the host's DeviceClient and the `mirrorscan device` CLI.
 // Downloads cut mid-way (TcpCutProxy) must resume to identical bytes; a followed stream
 // must equal the finished archive; a corrupted download must be refused.
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <fstream>
-#include <sstream>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -17,6 +13,7 @@
 #include "firmware/service/api_server.h"
 #include "firmware/service/test_scan_control.h"
 #include "host/client/device_client.h"
+#include "tests/support/process.h"
 #include "tests/tcp_cut_proxy.h"
 
 namespace mirrorscan {
@@ -32,18 +29,8 @@ constexpr char kToken[] = "virtual-dev-token-not-a-secret";
 const fs::path kCalibration =
     fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json";
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-struct CliResult {
-  int exit_code;
-  std::string out;  // stdout
-  std::string err;  // stderr
-};
+using test_support::CommandResult;
+using test_support::ReadFile;
 
 class DeviceApiTest : public ::testing::Test {
  protected:
@@ -92,18 +79,11 @@ class DeviceApiTest : public ::testing::Test {
   }
 
   // Runs the CLI in dir_/host with `environment` prepended.
-  CliResult Run(const std::string& arguments, const std::string& environment = "") const {
-    const fs::path err = dir_ / "stderr.txt";
-    const std::string command = "cd " + (dir_ / "host").string() + " && env -u MIRRORSCAN_TOKEN " +
-                                environment + " " + MIRRORSCAN_BIN_DIR + "/mirrorscan " +
-                                arguments + " 2>" + err.string();
-    FILE* pipe = ::popen(command.c_str(), "r");
-    std::string out;
-    std::array<char, 4096> buffer;
-    while (size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe))
-      out.append(buffer.data(), n);
-    const int status = ::pclose(pipe);
-    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out, ReadFile(err)};
+  CommandResult Run(const std::string& arguments, const std::string& environment = "") const {
+    return test_support::RunCommand("cd " + (dir_ / "host").string() +
+                                        " && env -u MIRRORSCAN_TOKEN " + environment + " " +
+                                        MIRRORSCAN_BIN_DIR + "/mirrorscan " + arguments,
+                                    dir_ / "stderr.txt");
   }
 
   fs::path dir_;
@@ -221,33 +201,34 @@ TEST_F(DeviceApiTest, FollowedStreamWithADropEqualsTheFinishedArchive) {
 }
 
 TEST_F(DeviceApiTest, CliScanWaitThenFetchGivesTheArchiveByteForByte) {
-  const CliResult scan = Run("device scan --wait --json --host " + Host() + " --token " + kToken);
+  const CommandResult scan =
+      Run("device scan --wait --json --host " + Host() + " --token " + kToken);
   ASSERT_EQ(scan.exit_code, 0) << scan.err;
   const json started = json::parse(scan.out);
   const std::string id = started.at("id");
   EXPECT_EQ(started.at("state"), "done");
   EXPECT_EQ(started.at("frames"), 100);
 
-  const CliResult list = Run("device list --json --host " + Host());
+  const CommandResult list = Run("device list --json --host " + Host());
   ASSERT_EQ(list.exit_code, 0) << list.err;
   EXPECT_EQ(json::parse(list.out).at(0).at("id"), id);
 
   // Through a proxy that drops the first connection: resumed, verified, ID.mscan here.
   TcpCutProxy proxy(port_, 100000, 1);
-  const CliResult fetch = Run("device fetch " + id + " --host " + Host(proxy.port()));
+  const CommandResult fetch = Run("device fetch " + id + " --host " + Host(proxy.port()));
   ASSERT_EQ(fetch.exit_code, 0) << fetch.err;
   EXPECT_NE(fetch.err.find("verified, resumed 1x"), std::string::npos) << fetch.err;
   EXPECT_EQ(ReadFile(dir_ / "host" / (id + ".mscan")), ReadFile(store_->Path(id)));
 
-  const CliResult status = Run("device status --host " + Host());
+  const CommandResult status = Run("device status --host " + Host());
   ASSERT_EQ(status.exit_code, 0) << status.err;
   EXPECT_NE(status.out.find("board virtual"), std::string::npos) << status.out;
   EXPECT_NE(status.out.find("done"), std::string::npos) << status.out;
 }
 
 TEST_F(DeviceApiTest, CliScanFollowStreamsTheArchiveLive) {
-  const CliResult scan = Run("device scan --follow --json --out live.mscan --host " + Host(),
-                             std::string("MIRRORSCAN_TOKEN=") + kToken);
+  const CommandResult scan = Run("device scan --follow --json --out live.mscan --host " + Host(),
+                                 std::string("MIRRORSCAN_TOKEN=") + kToken);
   ASSERT_EQ(scan.exit_code, 0) << scan.err;
   const json result = json::parse(scan.out);
   const std::string id = result.at("id");
@@ -258,25 +239,25 @@ TEST_F(DeviceApiTest, CliScanFollowStreamsTheArchiveLive) {
 
 TEST_F(DeviceApiTest, CliRefusesWithoutTokenAndExplains) {
   const std::string id = CompletedScan();
-  const CliResult denied = Run("device delete " + id + " --host " + Host());
+  const CommandResult denied = Run("device delete " + id + " --host " + Host());
   EXPECT_EQ(denied.exit_code, 1);
   EXPECT_NE(denied.err.find("missing bearer token"), std::string::npos) << denied.err;
   EXPECT_NE(denied.err.find("401"), std::string::npos) << denied.err;
-  const CliResult wrong =
+  const CommandResult wrong =
       Run("device delete " + id + " --host " + Host() + " --token wrong-token-0123456789");
   EXPECT_EQ(wrong.exit_code, 1);
   EXPECT_NE(wrong.err.find("wrong bearer token"), std::string::npos) << wrong.err;
   EXPECT_EQ(store_->List().size(), 1u);
-  const CliResult deleted =
+  const CommandResult deleted =
       Run("device delete " + id + " --host " + Host(), std::string("MIRRORSCAN_TOKEN=") + kToken);
   EXPECT_EQ(deleted.exit_code, 0) << deleted.err;
   EXPECT_TRUE(store_->List().empty());
 
-  const CliResult unreachable = Run("device status --host 127.0.0.1:1");
+  const CommandResult unreachable = Run("device status --host 127.0.0.1:1");
   EXPECT_EQ(unreachable.exit_code, 1);
   EXPECT_NE(unreachable.err.find("cannot reach the device at 127.0.0.1:1"), std::string::npos)
       << unreachable.err;
-  const CliResult bad_id = Run("device fetch ../../etc/passwd --host " + Host());
+  const CommandResult bad_id = Run("device fetch ../../etc/passwd --host " + Host());
   EXPECT_EQ(bad_id.exit_code, 1);
   EXPECT_NE(bad_id.err.find("not a scan id"), std::string::npos) << bad_id.err;
 }
@@ -287,25 +268,27 @@ TEST_F(DeviceApiTest, CliCalibrationAndCapture) {
   one_mirror["mirrors"].erase(1);
   std::ofstream(calibration) << one_mirror.dump();
   const std::string auth = std::string("MIRRORSCAN_TOKEN=") + kToken;
-  const CliResult refused = Run("device calibration put calibration.json --host " + Host(), auth);
+  const CommandResult refused =
+      Run("device calibration put calibration.json --host " + Host(), auth);
   EXPECT_EQ(refused.exit_code, 1);
   EXPECT_NE(refused.err.find("mirrors: expected two mirrors"), std::string::npos) << refused.err;
   fs::copy_file(kCalibration, calibration, fs::copy_options::overwrite_existing);
-  const CliResult put =
+  const CommandResult put =
       Run("device calibration put calibration.json --json --host " + Host(), auth);
   ASSERT_EQ(put.exit_code, 0) << put.err;
   EXPECT_EQ(json::parse(put.out).at("sha256"), protocol::Sha256::HexOfFile(calibration));
-  const CliResult get = Run("device calibration get --out back.json --host " + Host());
+  const CommandResult get = Run("device calibration get --out back.json --host " + Host());
   ASSERT_EQ(get.exit_code, 0) << get.err;
   EXPECT_EQ(ReadFile(dir_ / "host" / "back.json"), ReadFile(calibration));
 
-  const CliResult capture = Run("device capture --camera upper --lasers --host " + Host(), auth);
+  const CommandResult capture =
+      Run("device capture --camera upper --lasers --host " + Host(), auth);
   ASSERT_EQ(capture.exit_code, 0) << capture.err;
   EXPECT_EQ(ReadFile(dir_ / "host" / "upper-lasers.pgm").rfind("P5\n64 48\n255\n", 0), 0u);
 }
 
 TEST_F(DeviceApiTest, HelpNamesEverySubcommand) {
-  const CliResult help = Run("device --help");
+  const CommandResult help = Run("device --help");
   EXPECT_EQ(help.exit_code, 0);
   for (const char* sub : {"status", "list", "scan", "fetch", "delete", "calibration", "capture",
                           "discover", "--host", "--token", "MIRRORSCAN_TOKEN", "--json"}) {
@@ -313,7 +296,7 @@ TEST_F(DeviceApiTest, HelpNamesEverySubcommand) {
   }
   for (const char* sub : {"status", "list", "scan", "fetch", "delete", "calibration get",
                           "calibration put", "capture", "discover"}) {
-    const CliResult h = Run(std::string("device ") + sub + " --help");
+    const CommandResult h = Run(std::string("device ") + sub + " --help");
     EXPECT_EQ(h.exit_code, 0) << sub;
     EXPECT_NE(h.out.find("Usage:"), std::string::npos) << sub;
   }

@@ -2,20 +2,12 @@
 // rendering the three-panel target: a good target passes and the device ends up holding
 // exactly the calibration computed on the host; a target out of place fails with a reason
 // and leaves the device's calibration untouched.
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
-
-#include <arpa/inet.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
 
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <memory>
 #include <string>
 #include <thread>
 #include <vector>
@@ -23,7 +15,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-extern char** environ;
+#include "tests/support/process.h"
 
 namespace mirrorscan {
 namespace {
@@ -34,29 +26,9 @@ using nlohmann::json;
 const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
 const fs::path kBinDir = MIRRORSCAN_BIN_DIR;
 
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-int FreePort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
-  socklen_t length = sizeof(addr);
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &length);
-  ::close(fd);
-  return ntohs(addr.sin_port);
-}
-
-struct Result {
-  int exit_code = -1;
-  std::string output;  // stdout and stderr
-};
+using Result = test_support::CommandResult;
+using test_support::ChildProcess;
+using test_support::ReadFile;
 
 class FactoryCalibrateTest : public ::testing::Test {
  protected:
@@ -65,7 +37,7 @@ class FactoryCalibrateTest : public ::testing::Test {
     ASSERT_NE(::mkdtemp(pattern), nullptr);
     dir_ = pattern;
     token_ = json::parse(ReadFile(kSource / "boards/virtual/board.json"))["service"]["token"];
-    host_ = "127.0.0.1:" + std::to_string(FreePort());
+    host_ = "127.0.0.1:" + std::to_string(test_support::FreeLoopbackPort());
   }
 
   void TearDown() override {
@@ -74,51 +46,33 @@ class FactoryCalibrateTest : public ::testing::Test {
   }
 
   void StartDaemon(const fs::path& scene) {
-    std::vector<std::string> args = {(kBinDir / "mirrorscand").string(),
-                                     "--board",
-                                     (kSource / "boards/virtual/board.json").string(),
-                                     "--data-dir",
-                                     (dir_ / "data").string(),
-                                     "--listen",
-                                     host_,
-                                     "--scene",
-                                     scene.string()};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, (dir_ / "daemon.log").c_str(),
-                                     O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    ASSERT_EQ(posix_spawn(&daemon_, argv[0], &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
+    daemon_ = std::make_unique<ChildProcess>(
+        kBinDir / "mirrorscand",
+        std::vector<std::string>{"--board", (kSource / "boards/virtual/board.json").string(),
+                                 "--data-dir", (dir_ / "data").string(), "--listen", host_,
+                                 "--scene", scene.string()},
+        dir_ / "daemon.log");
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
     while (Shell(Mirrorscan() + " device status --host " + host_).exit_code != 0) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << ReadFile(dir_ / "daemon.log");
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << daemon_->Log();
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
   }
 
   void StopDaemon() {
-    if (daemon_ <= 0) return;
-    ::kill(daemon_, SIGTERM);
-    int status = 0;
-    ::waitpid(daemon_, &status, 0);
-    daemon_ = -1;
+    if (!daemon_) return;
+    daemon_->Signal(SIGTERM);
+    EXPECT_EQ(daemon_->Wait(), 0) << daemon_->Log();
+    daemon_.reset();
   }
 
   static std::string Mirrorscan() { return (kBinDir / "mirrorscan").string(); }
 
+  // `command` with the token and this build's mirrorscan in its environment.
   Result Shell(const std::string& command) {
-    const fs::path log = dir_ / "command.log";
-    const std::string line = "MIRRORSCAN_BIN=" + Mirrorscan() + " MIRRORSCAN_TOKEN=" + token_ +
-                             " " + command + " >" + log.string() + " 2>&1";
-    const int status = std::system(line.c_str());
-    Result result;
-    result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    result.output = ReadFile(log);
-    return result;
+    return test_support::RunCommand(
+        "MIRRORSCAN_BIN=" + Mirrorscan() + " MIRRORSCAN_TOKEN=" + token_ + " " + command + " 2>&1",
+        dir_ / "stderr.txt");
   }
 
   Result FactoryCalibrate(const fs::path& out) {
@@ -129,21 +83,21 @@ class FactoryCalibrateTest : public ::testing::Test {
   fs::path dir_;
   std::string token_;
   std::string host_;
-  pid_t daemon_ = -1;
+  std::unique_ptr<ChildProcess> daemon_;
 };
 
 TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   StartDaemon(kSource / "boards/virtual/scenes/calibration.json");
   const Result run = FactoryCalibrate(dir_ / "out");
-  ASSERT_EQ(run.exit_code, 0) << run.output << ReadFile(dir_ / "daemon.log");
-  EXPECT_NE(run.output.find("PASS"), std::string::npos) << run.output;
+  ASSERT_EQ(run.exit_code, 0) << run.out << daemon_->Log();
+  EXPECT_NE(run.out.find("PASS"), std::string::npos) << run.out;
 
   // What the device stores and serves is what the host computed, and it is a real
   // calibration of this cabinet: both cameras, both mirrors, small residuals.
   const json computed = json::parse(ReadFile(dir_ / "out/calibration.json"));
   const Result get = Shell(Mirrorscan() + " device calibration get --host " + host_ + " --out " +
                            (dir_ / "served.json").string());
-  ASSERT_EQ(get.exit_code, 0) << get.output;
+  ASSERT_EQ(get.exit_code, 0) << get.out;
   EXPECT_EQ(json::parse(ReadFile(dir_ / "served.json")), computed);
   EXPECT_EQ(json::parse(ReadFile(dir_ / "data/calibration.json")), computed);
   ASSERT_EQ(computed["cameras"].size(), 2u);
@@ -166,9 +120,9 @@ TEST_F(FactoryCalibrateTest, TargetOutOfPlaceFailsAndUploadsNothing) {
   StartDaemon(scene_file);
 
   const Result run = FactoryCalibrate(dir_ / "out");
-  EXPECT_EQ(run.exit_code, 1) << run.output;
-  EXPECT_NE(run.output.find("FAIL"), std::string::npos) << run.output;
-  EXPECT_NE(run.output.find("out of place"), std::string::npos) << run.output;
+  EXPECT_EQ(run.exit_code, 1) << run.out;
+  EXPECT_NE(run.out.find("FAIL"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("out of place"), std::string::npos) << run.out;
   EXPECT_FALSE(fs::exists(dir_ / "data/calibration.json"));
   EXPECT_FALSE(fs::exists(dir_ / "out/calibration.json"));
 }
@@ -177,8 +131,8 @@ TEST_F(FactoryCalibrateTest, WrongTokenIsRefusedBeforeAnythingIsStored) {
   StartDaemon(kSource / "boards/virtual/scenes/calibration.json");
   token_ = "not-the-token";
   const Result run = FactoryCalibrate(dir_ / "out");
-  EXPECT_EQ(run.exit_code, 1) << run.output;
-  EXPECT_NE(run.output.find("FAIL"), std::string::npos) << run.output;
+  EXPECT_EQ(run.exit_code, 1) << run.out;
+  EXPECT_NE(run.out.find("FAIL"), std::string::npos) << run.out;
   EXPECT_FALSE(fs::exists(dir_ / "data/calibration.json"));
 }
 

@@ -28,6 +28,7 @@
 #include "common/scan_format/scan_format.h"
 #include "firmware/hal/replay/replay_camera.h"
 #include "firmware/store/scan_store.h"
+#include "tests/support/process.h"
 
 namespace mirrorscan {
 namespace {
@@ -38,77 +39,12 @@ using std::chrono::seconds;
 
 const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
 
-class Daemon {
+// mirrorscand as a child process; a file size limit when fsize_limit > 0.
+class Daemon : public test_support::ChildProcess {
  public:
-  // Starts mirrorscand with `args`, output to `log`; a file size limit when fsize_limit > 0.
   Daemon(const std::vector<std::string>& args, const fs::path& log, rlim_t fsize_limit = 0,
          const std::vector<std::pair<std::string, std::string>>& env = {})
-      : log_(log) {
-    pid_ = fork();
-    if (pid_ == 0) {
-      for (const auto& [name, value] : env) setenv(name.c_str(), value.c_str(), 1);
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      dup2(fd, 1);
-      dup2(fd, 2);
-      if (fsize_limit > 0) {
-        signal(SIGXFSZ, SIG_IGN);  // writes past the limit then fail with EFBIG
-        rlimit limit{fsize_limit, fsize_limit};
-        setrlimit(RLIMIT_FSIZE, &limit);
-      }
-      std::vector<char*> argv;
-      std::string binary = MIRRORSCAND_PATH;
-      argv.push_back(binary.data());
-      std::vector<std::string> copy = args;
-      for (std::string& a : copy) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      execv(binary.c_str(), argv.data());
-      _exit(127);
-    }
-  }
-  ~Daemon() {
-    if (pid_ > 0 && !exit_code_) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  std::string Log() const {
-    std::ifstream in(log_);
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-  }
-  bool WaitLog(const std::string& text, milliseconds deadline = seconds(60)) {
-    const auto end = std::chrono::steady_clock::now() + deadline;
-    while (Log().find(text) == std::string::npos) {
-      if (std::chrono::steady_clock::now() > end || Exited()) return false;
-      std::this_thread::sleep_for(milliseconds(10));
-    }
-    return true;
-  }
-  bool Exited() {
-    if (exit_code_) return true;
-    int status = 0;
-    if (waitpid(pid_, &status, WNOHANG) == pid_) {
-      exit_code_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-      return true;
-    }
-    return false;
-  }
-  // The exit code (128 + signal if killed), or -1 after the deadline.
-  int Wait(milliseconds deadline = seconds(60)) {
-    const auto end = std::chrono::steady_clock::now() + deadline;
-    while (!Exited()) {
-      if (std::chrono::steady_clock::now() > end) return -1;
-      std::this_thread::sleep_for(milliseconds(10));
-    }
-    return *exit_code_;
-  }
-  void Signal(int signal) { kill(pid_, signal); }
-
- private:
-  fs::path log_;
-  pid_t pid_ = -1;
-  std::optional<int> exit_code_;
+      : ChildProcess(MIRRORSCAND_PATH, args, log, {env, fsize_limit}) {}
 };
 
 class MirrorscandTest : public ::testing::Test {
@@ -177,22 +113,32 @@ TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
   ASSERT_TRUE(archive.report.complete) << archive.report.message;
   EXPECT_EQ(archive.header["board"], "virtual");
   EXPECT_EQ(archive.header["origin"], "test");
-  // 30 fps x 2 cameras for the 2 s sweep, nothing dropped.
+  // Nothing dropped: no frame lost between the cameras and the archive, and each camera's
+  // sequence without gaps. (How many frames a camera makes depends on how fast this
+  // machine renders them: 30 fps x 2 s when idle, fewer under load.)
   EXPECT_EQ((*archive.footer)["dropped"], 0) << archive.footer->dump();
   for (int camera = 0; camera < 2; ++camera) {
-    size_t frames = 0, with_peaks = 0;
+    std::vector<const FrameRecord*> frames;
     for (const FrameRecord& f : archive.frames) {
-      if (f.camera != camera) continue;
-      ++frames;
-      if (!f.peaks.empty()) ++with_peaks;
-      EXPECT_TRUE(f.lasers_on);
+      if (f.camera == camera) frames.push_back(&f);
+    }
+    ASSERT_GE(frames.size(), 20u) << "camera " << camera;
+    EXPECT_EQ((*archive.footer)["frames"][camera], frames.size());
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const FrameRecord& f = *frames[i];
+      if (i > 0) {
+        EXPECT_EQ(f.sequence, frames[i - 1]->sequence + 1) << "camera " << camera;
+      }
       EXPECT_GE(f.slide_position_mm, 199.0);
       EXPECT_LE(f.slide_position_mm, 501.0);
+      // Lit frames show the laser ring (on the mannequin and the panels). Only the first
+      // may have begun its exposure before the lasers went on (then recorded as off).
+      if (f.lasers_on) {
+        EXPECT_FALSE(f.peaks.empty()) << "camera " << camera << " sequence " << f.sequence;
+      } else {
+        EXPECT_EQ(i, 0u) << "camera " << camera << " sequence " << f.sequence;
+      }
     }
-    EXPECT_GE(frames, 54u) << "camera " << camera;
-    EXPECT_EQ((*archive.footer)["frames"][camera], frames);
-    // The lasers cross the mannequin and the panels in every frame of the sweep.
-    EXPECT_EQ(with_peaks, frames) << "camera " << camera;
   }
 }
 

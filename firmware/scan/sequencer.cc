@@ -460,6 +460,7 @@ void Sequencer::StepArming() {
   supervisor_->Arm(names, true);
   recording_ = true;
   devices_.lasers->SetAll(true);
+  lasers_on_since_ns_ = hal::SteadyNowNs();
   devices_.drive->SetSpeed(options_.speed_mm_s);
   devices_.drive->Start(options_.sweep_end_mm);
   command_ns_ = hal::SteadyNowNs();
@@ -513,7 +514,9 @@ void Sequencer::OnFrame(int camera, hal::Frame frame) {
   CapturedItem item;
   item.camera = camera;
   const std::vector<bool> lasers = devices_.lasers->states();
-  item.lasers_on = std::find(lasers.begin(), lasers.end(), true) != lasers.end();
+  const int64_t lasers_on_since_ns = lasers_on_since_ns_.load();
+  item.lasers_on = std::find(lasers.begin(), lasers.end(), true) != lasers.end() &&
+                   lasers_on_since_ns != 0 && frame.timestamp_ns() >= lasers_on_since_ns;
   item.frame = std::move(frame);
   if (!capture_queue_->TryPush(item)) ++counters_[camera]->queue_dropped;
 }
@@ -563,6 +566,7 @@ void Sequencer::Fail(const std::string& reason) {
   trip.detected_ns = hal::SteadyNowNs();
   supervisor_->Disarm();
   devices_.lasers->SafeOff();
+  lasers_on_since_ns_ = 0;
   trip.safe_ns = hal::SteadyNowNs();
   try {
     devices_.drive->Stop();
@@ -580,6 +584,7 @@ void Sequencer::EndScan(SequencerState end, const std::string& reason) {
   recording_ = false;
   supervisor_->Disarm();
   if (!devices_.lasers->SafeOff()) spdlog::critical("sequencer: a laser line did not go off");
+  lasers_on_since_ns_ = 0;
   if (end != SequencerState::kDone) {
     try {
       devices_.drive->Stop();

@@ -170,6 +170,9 @@ class Sequencer final : public ScanControl {
   int64_t last_progress_ns_ = 0;
   std::vector<std::unique_ptr<CameraCounters>> counters_;
   std::atomic<bool> recording_{false};  // frames go to the archive
+  // When the lasers went on in this sweep (steady ns), 0 while they are off: a frame whose
+  // exposure began earlier is recorded as lasers off even if it arrives after.
+  std::atomic<int64_t> lasers_on_since_ns_{0};
   std::vector<std::unique_ptr<std::atomic<int64_t>>> first_frame_ns_;
   std::atomic<bool> capture_busy_{false};
 
