@@ -150,10 +150,10 @@ std::string ScenePath(const std::string& name) {
 
 const std::vector<Condition>& Conditions() {
   static const std::vector<Condition> conditions = {
-      {"default (read σ 2 DN, shot, speckle 0.2)", 2.0, 400.0, true, 20},
+      {"default (read σ 2 DN, shot, speckle 0.2)", 2.0, 400.0, true, 18},
       {"read noise σ 5 DN", 5.0, 400.0, true, 30},
-      {"saturated stripes (laser ×4)", 2.0, 1600.0, true, 20},
-      {"noise-free", 0.0, 400.0, false, 20},
+      {"saturated stripes (laser ×4)", 2.0, 1600.0, true, 18},
+      {"noise-free", 0.0, 400.0, false, 18},
   };
   return conditions;
 }
@@ -228,9 +228,11 @@ const std::map<std::string, std::map<std::string, Figures>>& Table() {
 
 // The targets, against truth, with the default parameters: default sensor RMS
 // <= 0.03 px, |bias| <= 0.005 px, recall >= 99.5 %, <= 1 false peak per frame; read
-// noise sigma 5 DN <= 0.06 px; saturated <= 0.05 px. Noise-free <= 0.01 px is not met:
-// at stripe tips and bends the image's own brightness centroid is off the truth curve
-// (docs/peak-extraction.md), so that bound is just above what the extractor reaches.
+// noise sigma 5 DN <= 0.06 px; saturated <= 0.05 px. Noise-free <= 0.01 px is not met
+// (0.0140): 3 % of the peaks, at stripe tips and ends where the noise-free image's own
+// light centroid is off the truth curve, carry 68 % of the squared error; the rest is at
+// 0.008 px (docs/peak-extraction.md, noise-free error budget). So that bound is a guard
+// just above what the extractor reaches.
 TEST(PeaksAccuracyTest, DefaultEstimatorOnRenderedFrames) {
   const std::string best = Default();
   const Figures& f = Table().at(Conditions()[0].name).at(best);

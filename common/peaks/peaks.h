@@ -74,7 +74,7 @@ struct PixelRect {
 
 struct PeakParams {
   PeakEstimator estimator = PeakEstimator::kGaussian3;
-  int threshold_dn = 20;      // Peak minus local background, DN.
+  int threshold_dn = 18;      // Peak minus local background, DN.
   int window = 8;             // Half-width in rows of the background/estimator window.
   float min_width_px = 1.2f;  // FWHM limits; narrower = glint, wider = not a laser line.
   float max_width_px = 8.0f;
@@ -93,7 +93,7 @@ struct PeakParams {
   // Throws std::invalid_argument "peaks.<key>: problem" on bad values.
   void Validate() const;
   // Reads board.json's "peaks" object (all keys optional, unknown keys rejected):
-  // {"estimator": "gaussian3", "threshold_dn": 20, "window": 8, "min_width_px": 1.2,
+  // {"estimator": "gaussian3", "threshold_dn": 18, "window": 8, "min_width_px": 1.2,
   //  "max_width_px": 8, "max_peaks_per_column": 9, "min_separation_px": 3,
   //  "saturation_level": 255, "roi": {"x":0,"y":0,"width":0,"height":0},
   //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...],
