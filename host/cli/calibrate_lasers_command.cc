@@ -136,12 +136,13 @@ void Run(const LasersOptions& o) {
     if (lasers.contains("spacing_mm") && lasers["spacing_mm"].is_number())
       cabinet.nominal_spacing_mm = lasers["spacing_mm"].get<double>();
   }
-  if (header.contains("slide_speed_mm_s") && header["slide_speed_mm_s"].is_number())
-    cabinet.nominal_speed_mm_s = header["slide_speed_mm_s"].get<double>();
+  if (header.contains("slide") && header["slide"].is_object() &&
+      header["slide"].contains("speed_mm_s") && header["slide"]["speed_mm_s"].is_number())
+    cabinet.nominal_speed_mm_s = header["slide"]["speed_mm_s"].get<double>();
 
   LaserHeightOptions options;
-  if (header.contains("start_time_ns") && header["start_time_ns"].is_number_integer())
-    options.time_origin_ns = header["start_time_ns"].get<int64_t>();
+  if (header.contains("start_steady_ns") && header["start_steady_ns"].is_number_integer())
+    options.time_origin_ns = header["start_steady_ns"].get<int64_t>();
   options.readback_offset_mm = o.readback_offset_mm;
   options.readback_tolerance_mm = o.readback_tolerance_mm;
   options.fit_tilt = !o.no_tilt;

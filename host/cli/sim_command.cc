@@ -253,8 +253,9 @@ void Scan(const SimOptions& o) {
          {"calibration", scene.TrueCalibration()},
          {"cameras", cameras_json},
          {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
-         {"slide_speed_mm_s", scene.lasers.speed_mm_s},
-         {"start_time_ns", 0}});
+         // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
+         {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
+         {"start_steady_ns", 0}});
     size_t peak_count = 0;
     for (const FrameRecord& record : records) {
       writer.AppendFrame(record);
