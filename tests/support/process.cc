@@ -16,6 +16,8 @@
 #include <stdexcept>
 #include <thread>
 
+extern char** environ;
+
 namespace mirrorscan::test_support {
 
 std::string ReadFile(const std::filesystem::path& path) {
@@ -58,17 +60,28 @@ ChildProcess::ChildProcess(const std::filesystem::path& program,
                            const std::vector<std::string>& args, const std::filesystem::path& log,
                            const ChildOptions& options)
     : log_(log) {
-  // Everything the child needs is prepared before fork: after it only async-signal-safe
-  // calls (and setenv, which is fine in a single-threaded child image about to exec).
+  // Everything the child needs is prepared before fork: the test runner may have threads,
+  // so the child calls only async-signal-safe functions before exec (no setenv).
   std::vector<std::string> argv_text = {program.string()};
   argv_text.insert(argv_text.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : argv_text) argv.push_back(a.data());
   argv.push_back(nullptr);
+  std::vector<std::string> env_text;
+  for (char** e = environ; *e != nullptr; ++e) {
+    const std::string entry = *e;
+    const std::string name = entry.substr(0, entry.find('='));
+    bool overridden = false;
+    for (const auto& [override_name, value] : options.env) overridden |= name == override_name;
+    if (!overridden) env_text.push_back(entry);
+  }
+  for (const auto& [name, value] : options.env) env_text.push_back(name + "=" + value);
+  std::vector<char*> envp;
+  for (std::string& e : env_text) envp.push_back(e.data());
+  envp.push_back(nullptr);
   pid_ = ::fork();
   if (pid_ < 0) throw std::runtime_error("ChildProcess: fork failed");
   if (pid_ == 0) {
-    for (const auto& [name, value] : options.env) ::setenv(name.c_str(), value.c_str(), 1);
     const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(fd, 1);
     ::dup2(fd, 2);
@@ -77,7 +90,7 @@ ChildProcess::ChildProcess(const std::filesystem::path& program,
       const rlimit limit{options.file_size_limit, options.file_size_limit};
       ::setrlimit(RLIMIT_FSIZE, &limit);
     }
-    ::execv(argv[0], argv.data());
+    ::execve(argv[0], argv.data(), envp.data());
     ::_exit(127);
   }
 }
