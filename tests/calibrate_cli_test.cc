@@ -121,6 +121,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   // A calibration whose mirrors have no corners cannot say where the panels are.
   nlohmann::json calibration = ReadJson(dir / "calibration.json");
   for (auto& mirror : calibration["mirrors"]) mirror.erase("corners_mm");
+  calibration.erase("content_hash");  // edited by hand: no hash to check
   std::ofstream(dir / "no_corners.json") << calibration.dump();
   const Result bad =
       RunMirrorscan("calibrate-lasers " + (dir / "scan.mscan").string() + " --calibration " +

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "common/config/calibration.h"
 #include "common/config/json_reader.h"
 
 namespace mirrorscan::virtual_cabinet {
@@ -260,65 +261,46 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
 }
 
 nlohmann::json Scene::TrueCalibration() const {
-  auto vec = [](const Eigen::Vector3d& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
-  nlohmann::json cameras_json = nlohmann::json::array();
+  // The schema's own writer (common/config/calibration), so the truth is always a file
+  // the calibration tools read.
+  Calibration truth;
+  truth.source = "virtual cabinet ground truth";
+  truth.target_id = target ? "virtual-3panel-aruco48" : "";
   for (const auto& c : cameras) {
-    const CameraIntrinsics& k = c.camera.intrinsics;
-    const Eigen::Matrix3d r = c.camera.cam_from_world.RotationMatrix();
-    nlohmann::json views = nlohmann::json::array();
-    views.push_back({{"name", "center"}, {"mirror", nullptr}});
+    CalibrationCamera camera;
+    camera.name = c.name;
+    camera.camera = c.camera;
+    camera.fps = c.fps;
+    camera.views.push_back({"center", std::nullopt, {}});
     for (const auto& m : mirrors) {
       // The mirror's outline in the image: everything inside is seen through it.
-      nlohmann::json outline = nlohmann::json::array();
+      CalibrationView view{m.name, m.name, {}};
       const auto corners = m.Corners();
       for (int edge = 0; edge < 4; ++edge) {
         for (int i = 0; i < 16; ++i) {
           const Eigen::Vector3d p =
               corners[edge] + (corners[(edge + 1) % 4] - corners[edge]) * (i / 16.0);
-          if (const auto px = c.camera.ProjectWorld(p)) outline.push_back({px->x(), px->y()});
+          if (const auto px = c.camera.ProjectWorld(p)) view.outline_px.push_back(*px);
         }
       }
-      views.push_back({{"name", m.name}, {"mirror", m.name}, {"outline_px", outline}});
+      camera.views.push_back(view);
     }
-    cameras_json.push_back({{"name", c.name},
-                            {"width", k.width},
-                            {"height", k.height},
-                            {"fps", c.fps},
-                            {"K", {{k.fx, 0.0, k.cx}, {0.0, k.fy, k.cy}, {0.0, 0.0, 1.0}}},
-                            {"distortion", {k.k1, k.k2, k.p1, k.p2, k.k3}},
-                            {"cam_from_world",
-                             {{"rotation",
-                               {{r(0, 0), r(0, 1), r(0, 2)},
-                                {r(1, 0), r(1, 1), r(1, 2)},
-                                {r(2, 0), r(2, 1), r(2, 2)}}},
-                              {"translation_mm", vec(c.camera.cam_from_world.translation)}}},
-                            {"views", views}});
+    truth.cameras.push_back(camera);
   }
-  nlohmann::json mirrors_json = nlohmann::json::array();
   for (int i = 0; i < 2; ++i) {
     const Mirror& m = mirrors[i];
-    nlohmann::json corners = nlohmann::json::array();
-    for (const auto& c : m.Corners()) corners.push_back(vec(c));
-    mirrors_json.push_back({{"name", m.name},
-                            {"normal", vec(m.plane.normal)},
-                            {"offset_mm", m.plane.offset},
-                            {"corners_mm", corners},
-                            {"panel_offset_mm", panels[i].offset_mm}});
+    const auto corners = m.Corners();
+    truth.mirrors.push_back(
+        {m.name, m.plane, {corners.begin(), corners.end()}, panels[i].offset_mm});
   }
-  return {{"schema", "mirrorscan.calibration"},
-          {"version", 1},
-          {"source", "virtual cabinet ground truth"},
-          {"target_id", target ? "virtual-3panel-aruco48" : ""},
-          {"cameras", cameras_json},
-          {"mirrors", mirrors_json},
-          {"lasers",
-           {{"count", lasers.count},
-            {"spacing_mm", lasers.spacing_mm},
-            {"normal", vec(lasers.normal)},
-            {"height_at_t0_mm", lasers.start_mm},
-            {"speed_mm_s", lasers.speed_mm_s},
-            {"note", "laser k at time t: normal · x = height_at_t0 + speed·t + k·spacing"}}},
-          {"residuals", {{"reprojection_rms_px", 0.0}}}};
+  CalibrationLasers truth_lasers;
+  truth_lasers.count = lasers.count;
+  truth_lasers.spacing_mm = lasers.spacing_mm;
+  truth_lasers.normal = lasers.normal;
+  truth_lasers.height_at_t0_mm = lasers.start_mm;
+  truth_lasers.speed_mm_s = lasers.speed_mm_s;
+  truth.lasers = truth_lasers;
+  return truth.ToJson();
 }
 
 }  // namespace mirrorscan::virtual_cabinet
