@@ -187,13 +187,16 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   }
 
   const JsonReader pr(json.contains("panels") ? json["panels"] : empty, file_name, "panels");
-  pr.AllowOnly({"offset_mm", "margin_mm", "albedo"});
-  const double offset = pr.Number("offset_mm", 6.0, 0.0, 200.0);
+  pr.AllowOnly({"offset_mm", "left_offset_mm", "right_offset_mm", "margin_mm", "albedo"});
+  const double common_offset = pr.Number("offset_mm", 6.0, 0.0, 200.0);
   const double margin = pr.Number("margin_mm", 120.0, 10.0, 2000.0);
   const double panel_albedo = pr.Number("albedo", 0.8, 0.0, 1.0);
   for (int side = 0; side < 2; ++side) {
     const Mirror& m = scene.mirrors[side];
     Panel& p = scene.panels[side];
+    // A panel mounted off its nominal place (what the laser calibration must notice).
+    const double offset =
+        pr.Number(side == 0 ? "left_offset_mm" : "right_offset_mm", common_offset, 0.0, 200.0);
     p.name = m.name;
     p.offset_mm = offset;
     p.plane = Plane{m.plane.normal, m.plane.offset + offset};  // `offset` further from the subject

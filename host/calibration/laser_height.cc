@@ -15,6 +15,9 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 constexpr size_t kMinPanelPoints = 20;
+// Camera centres closer than this count as one when deciding whether panel offsets can be
+// measured.
+constexpr double kMinCameraBaselineMm = 100.0;
 
 std::string Format(const char* format, auto... args) {
   char buffer[512];
@@ -59,7 +62,11 @@ std::vector<PanelPoint> CollectPanelPoints(const std::vector<FrameRecord>& frame
                                                return t && *t < nearest;
                                              });
       if (behind_mirror) continue;
-      points.push_back({f, panel, peak.u, peak.v, ray->At(nearest), -1, 0.0});
+      // The panel plane n·x + d = 0 moved δ further back is n·x + d + δ = 0: the ray meets
+      // it at t − δ/(n·r).
+      const Eigen::Vector3d per_offset =
+          -ray->direction / cabinet.panels[panel].plane.normal.dot(ray->direction);
+      points.push_back({f, panel, peak.u, peak.v, ray->At(nearest), per_offset, -1, 0.0});
     }
   }
   return points;
@@ -156,6 +163,189 @@ PanelLines FindPanelLines(const std::vector<Eigen::Vector2d>& time_height,
   return lines;
 }
 
+// The joint model of step 2: z + a·x + b·y = h0 + v·t + c_k (c_0 = 0), the plane normal
+// ∝ (a, b, 1), with each point moved along its ray by its panel's offset change δ_p where
+// that is fitted.
+struct JointFit {
+  double a = 0, b = 0, h0 = 0, v = 0;
+  std::vector<double> c;              // per laser
+  std::vector<double> delta;          // per panel, mm further back than assumed
+  std::vector<double> offset_std_mm;  // per panel; infinite where it cannot be measured
+  bool tilt_dropped = false;          // lines on one panel only
+};
+
+// Unknowns of the normal equations: h0, v, c_k for each seen laser k > 0, then a, b,
+// then δ_p for the panels whose offset is fitted.
+struct Columns {
+  std::vector<int> laser, offset;  // -1: not an unknown
+  int tilt = -1;
+  int count = 2;
+};
+
+Columns LayOutColumns(const std::vector<int>& seen, const std::vector<int>& panels_seen,
+                      bool fit_tilt, const std::vector<bool>& fit_offset) {
+  Columns columns;
+  columns.laser.assign(seen.size(), -1);
+  for (size_t k = 1; k < seen.size(); ++k)
+    if (seen[k] > 0) columns.laser[k] = columns.count++;
+  if (fit_tilt) {
+    columns.tilt = columns.count;
+    columns.count += 2;
+  }
+  columns.offset.assign(panels_seen.size(), -1);
+  for (size_t p = 0; p < panels_seen.size(); ++p)
+    if (fit_offset[p] && panels_seen[p] > 0) columns.offset[p] = columns.count++;
+  return columns;
+}
+
+// The inliers' normal equations, linear in δ about the current tilt (a, b).
+void NormalEquations(const std::vector<PanelPoint>& points, const std::vector<double>& point_time,
+                     const Columns& columns, double a, double b, Eigen::MatrixXd* normal_matrix,
+                     Eigen::VectorXd* rhs) {
+  *normal_matrix = Eigen::MatrixXd::Zero(columns.count, columns.count);
+  *rhs = Eigen::VectorXd::Zero(columns.count);
+  Eigen::VectorXd row(columns.count);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const PanelPoint& p = points[i];
+    if (p.laser < 0) continue;
+    row.setZero();
+    row(0) = 1.0;
+    row(1) = point_time[i];
+    if (columns.laser[p.laser] >= 0) row(columns.laser[p.laser]) = 1.0;
+    if (columns.tilt >= 0) {
+      row(columns.tilt) = -p.point_in_world.x();
+      row(columns.tilt + 1) = -p.point_in_world.y();
+    }
+    // z(δ) + a·x(δ) + b·y(δ) with x(δ) = x + w·δ.
+    const Eigen::Vector3d& w = p.point_per_offset_mm;
+    if (columns.offset[p.panel] >= 0)
+      row(columns.offset[p.panel]) = -(w.z() + a * w.x() + b * w.y());
+    normal_matrix->selfadjointView<Eigen::Lower>().rankUpdate(row);
+    *rhs += row * p.point_in_world.z();
+  }
+  normal_matrix->triangularView<Eigen::StrictlyUpper>() = normal_matrix->transpose();
+}
+
+// Fits the joint model, reassigning every candidate to its nearest laser plane under a
+// gate that closes in to 5 robust sigmas; `points` keep their laser and residual.
+JointFit FitJointly(std::vector<PanelPoint>& points, const std::vector<double>& point_time,
+                    int lasers, double nominal_spacing_mm, const LaserHeightOptions& options,
+                    const std::vector<bool>& fit_offset) {
+  const int panels = static_cast<int>(fit_offset.size());
+  JointFit fit;
+  fit.c.assign(lasers, 0.0);
+  fit.delta.assign(panels, 0.0);
+  fit.offset_std_mm.assign(panels, std::numeric_limits<double>::infinity());
+  double& a = fit.a;
+  double& b = fit.b;
+  double gate = options.gate_mm;
+  bool fit_tilt = options.fit_tilt;
+  std::vector<int> seen(lasers, 0), panels_seen(panels, 0);
+  auto moved = [&](const PanelPoint& p) -> Eigen::Vector3d {
+    return p.point_in_world + p.point_per_offset_mm * fit.delta[p.panel];
+  };
+  Eigen::MatrixXd normal_matrix;
+  Eigen::VectorXd rhs;
+  Columns last_columns;
+  for (int iteration = 0; iteration < 30; ++iteration) {
+    std::fill(seen.begin(), seen.end(), 0);
+    std::fill(panels_seen.begin(), panels_seen.end(), 0);
+    for (const PanelPoint& p : points) {
+      if (p.laser < 0) continue;
+      ++seen[p.laser];
+      ++panels_seen[p.panel];
+    }
+    if (fit_tilt &&
+        std::count_if(panels_seen.begin(), panels_seen.end(), [](int n) { return n > 0; }) < 2) {
+      fit_tilt = false;
+      fit.tilt_dropped = true;
+      a = b = 0;
+    }
+    const Columns columns = LayOutColumns(seen, panels_seen, fit_tilt, fit_offset);
+    last_columns = columns;
+    NormalEquations(points, point_time, columns, a, b, &normal_matrix, &rhs);
+    const Eigen::VectorXd solution = normal_matrix.ldlt().solve(rhs);
+    fit.h0 = solution(0);
+    fit.v = solution(1);
+    for (int k = 1; k < lasers; ++k)
+      fit.c[k] = columns.laser[k] >= 0 ? solution(columns.laser[k]) : k * nominal_spacing_mm;
+    if (fit_tilt) {
+      a = solution(columns.tilt);
+      b = solution(columns.tilt + 1);
+    }
+    double delta_change = 0;
+    for (int p = 0; p < panels; ++p) {
+      const double delta = columns.offset[p] >= 0 ? solution(columns.offset[p]) : 0.0;
+      delta_change = std::max(delta_change, std::abs(delta - fit.delta[p]));
+      fit.delta[p] = delta;
+    }
+    const double scale = std::sqrt(a * a + b * b + 1.0);
+    auto lhs_of = [&](const PanelPoint& p, double t) {
+      const Eigen::Vector3d x = moved(p);
+      return (x.z() + a * x.x() + b * x.y() - fit.h0 - fit.v * t) / scale;
+    };
+
+    // Reassign every candidate to its nearest laser plane; gate at 5 robust sigmas.
+    std::vector<double> inlier_abs;
+    for (size_t i = 0; i < points.size(); ++i) {
+      const PanelPoint& p = points[i];
+      if (p.laser < 0) continue;
+      inlier_abs.push_back(std::abs(lhs_of(p, point_time[i]) - fit.c[p.laser] / scale));
+    }
+    const double sigma = 1.4826 * Median(inlier_abs);
+    // The first pass keeps the wide gate, so a laser no panel showed as a line (placed at
+    // the nominal spacing) can gather its points before the gate closes in.
+    const double new_gate = iteration == 0
+                                ? options.gate_mm
+                                : std::clamp(5.0 * sigma, options.min_gate_mm, options.gate_mm);
+    bool changed = false;
+    for (size_t i = 0; i < points.size(); ++i) {
+      PanelPoint& p = points[i];
+      const double lhs = lhs_of(p, point_time[i]);
+      int best_laser = -1;
+      double best = new_gate;
+      for (int k = 0; k < lasers; ++k) {
+        const double r = lhs - fit.c[k] / scale;
+        if (std::abs(r) < best) {
+          best = std::abs(r);
+          best_laser = k;
+          p.residual_mm = r;
+        }
+      }
+      changed |= best_laser != p.laser;
+      p.laser = best_laser;
+    }
+    const bool converged =
+        iteration > 0 && !changed && std::abs(new_gate - gate) < 1e-3 && delta_change < 1e-4;
+    gate = new_gate;
+    if (converged) break;
+  }
+
+  // Standard errors of the fitted offsets, from the last normal equations and the
+  // inliers' residual RMS (unknowns scaled to a unit diagonal for a well-conditioned
+  // inverse).
+  double sum_sq = 0;
+  size_t inliers = 0;
+  for (const PanelPoint& p : points) {
+    if (p.laser < 0) continue;
+    sum_sq += p.residual_mm * p.residual_mm;
+    ++inliers;
+  }
+  if (inliers == 0) return fit;
+  const Eigen::VectorXd unit = normal_matrix.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd scaled = unit.asDiagonal() * normal_matrix * unit.asDiagonal();
+  const Eigen::MatrixXd covariance =
+      scaled.ldlt().solve(Eigen::MatrixXd::Identity(scaled.rows(), scaled.cols()));
+  const double variance = sum_sq / static_cast<double>(inliers);
+  for (int p = 0; p < panels; ++p) {
+    const int col = last_columns.offset[p];
+    if (col < 0) continue;
+    const double std_error = unit(col) * std::sqrt(variance * covariance(col, col));
+    if (std::isfinite(std_error)) fit.offset_std_mm[p] = std_error;
+  }
+  return fit;
+}
+
 }  // namespace
 
 std::optional<double> PlanarRectangle::Intersect(const Ray3d& ray) const {
@@ -210,6 +400,7 @@ LaserCabinet LaserCabinetFromCalibration(const Calibration& calibration, const s
         {mirror.corners_mm[0], mirror.corners_mm[1], mirror.corners_mm[2], mirror.corners_mm[3]}));
     cabinet.panels.push_back(
         PanelBehindMirror(cabinet.mirrors.back(), mirror.panel_offset_mm, panel_margin_mm));
+    cabinet.panel_offset_mm.push_back(mirror.panel_offset_mm);
   }
   if (calibration.lasers) {
     cabinet.laser_count = calibration.lasers->count;
@@ -298,96 +489,78 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
     }
   }
 
-  // 2. One model for all panels and lasers, refit with a shrinking gate:
-  //   z + a·x + b·y = h0 + v·t + c_k  (c_0 = 0), i.e. the plane normal ∝ (a, b, 1).
-  std::vector<double> c(lasers, 0.0);
-  double a = 0, b = 0, h0 = 0, v = 0;
-  double gate = options.gate_mm;
-  std::vector<int> seen(lasers, 0);
-  bool fit_tilt = options.fit_tilt;
-  for (int iteration = 0; iteration < 12; ++iteration) {
-    std::fill(seen.begin(), seen.end(), 0);
-    std::vector<int> panels_seen(cabinet.panels.size(), 0);
-    for (const PanelPoint& p : points) {
-      if (p.laser < 0) continue;
-      ++seen[p.laser];
-      ++panels_seen[p.panel];
-    }
-    if (fit_tilt &&
-        std::count_if(panels_seen.begin(), panels_seen.end(), [](int n) { return n > 0; }) < 2) {
-      fit_tilt = false;
-      result.warnings.push_back("laser lines on one panel only: tilt not fitted (assumed level)");
-      a = b = 0;
-    }
-    // Columns: h0, v, c_k for each seen laser k > 0, then a, b.
-    std::vector<int> column_of(lasers, -1);
-    int columns = 2;
-    for (int k = 1; k < lasers; ++k)
-      if (seen[k] > 0) column_of[k] = columns++;
-    const int tilt_column = columns;
-    if (fit_tilt) columns += 2;
-    Eigen::MatrixXd normal_matrix = Eigen::MatrixXd::Zero(columns, columns);
-    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(columns);
-    Eigen::VectorXd row(columns);
-    for (const PanelPoint& p : points) {
-      if (p.laser < 0) continue;
-      row.setZero();
-      row(0) = 1.0;
-      row(1) = time_of(p);
-      if (column_of[p.laser] >= 0) row(column_of[p.laser]) = 1.0;
-      if (fit_tilt) {
-        row(tilt_column) = -p.point_in_world.x();
-        row(tilt_column + 1) = -p.point_in_world.y();
+  // 2. One model for all panels and lasers, refit with a shrinking gate; the panels'
+  // offsets are fitted where this scan can measure them, else kept as the cabinet's.
+  std::vector<double> point_time(points.size());
+  for (size_t i = 0; i < points.size(); ++i) point_time[i] = time_of(points[i]);
+  const int panels = static_cast<int>(cabinet.panels.size());
+  // First with the cabinet's offsets. Then the offsets free, if two camera centres see
+  // the panels: moving a panel back scales the points one camera sees on it about that
+  // camera, which a line fit cannot tell from the sweep's own scale (and would shrink to
+  // nothing), while a second camera sees the same lines scaled about another centre.
+  const std::vector<bool> none(panels, false);
+  JointFit joint =
+      FitJointly(points, point_time, lasers, cabinet.nominal_spacing_mm, options, none);
+  std::vector<Eigen::Vector3d> centres;
+  for (const PanelPoint& p : points) {
+    if (p.laser < 0) continue;
+    const Eigen::Vector3d centre = cabinet.cameras[frames[p.frame].camera].CenterInWorld();
+    if (std::none_of(centres.begin(), centres.end(), [&](const Eigen::Vector3d& c) {
+          return (c - centre).norm() < kMinCameraBaselineMm;
+        }))
+      centres.push_back(centre);
+  }
+  std::vector<bool> free_offset(panels, options.fit_panel_offsets && centres.size() >= 2);
+  if (std::find(free_offset.begin(), free_offset.end(), true) != free_offset.end()) {
+    joint =
+        FitJointly(points, point_time, lasers, cabinet.nominal_spacing_mm, options, free_offset);
+    // A panel only glimpsed gives too uncertain an offset: keep the cabinet's.
+    bool uncertain = false;
+    for (int p = 0; p < panels; ++p) {
+      if (free_offset[p] && !(joint.offset_std_mm[p] <= options.max_panel_offset_std_mm)) {
+        free_offset[p] = false;
+        uncertain = true;
       }
-      normal_matrix.selfadjointView<Eigen::Lower>().rankUpdate(row);
-      rhs += row * p.point_in_world.z();
     }
-    const Eigen::VectorXd solution =
-        normal_matrix.selfadjointView<Eigen::Lower>().ldlt().solve(rhs);
-    h0 = solution(0);
-    v = solution(1);
-    for (int k = 1; k < lasers; ++k)
-      c[k] = column_of[k] >= 0 ? solution(column_of[k]) : k * cabinet.nominal_spacing_mm;
-    if (fit_tilt) {
-      a = solution(tilt_column);
-      b = solution(tilt_column + 1);
+    if (uncertain) {
+      const std::vector<double> offset_std = joint.offset_std_mm;
+      joint =
+          FitJointly(points, point_time, lasers, cabinet.nominal_spacing_mm, options, free_offset);
+      for (int p = 0; p < panels; ++p)
+        if (!free_offset[p]) joint.offset_std_mm[p] = offset_std[p];
     }
-    const double scale = std::sqrt(a * a + b * b + 1.0);
-
-    // Reassign every candidate to its nearest laser plane; gate at 5 robust sigmas.
-    std::vector<double> inlier_abs;
-    for (const PanelPoint& p : points) {
-      if (p.laser < 0) continue;
-      const Eigen::Vector3d& x = p.point_in_world;
-      inlier_abs.push_back(
-          std::abs((x.z() + a * x.x() + b * x.y() - h0 - v * time_of(p) - c[p.laser]) / scale));
-    }
-    const double sigma = 1.4826 * Median(inlier_abs);
-    // The first pass keeps the wide gate, so a laser no panel showed as a line (placed at
-    // the nominal spacing) can gather its points before the gate closes in.
-    const double new_gate = iteration == 0
-                                ? options.gate_mm
-                                : std::clamp(5.0 * sigma, options.min_gate_mm, options.gate_mm);
-    bool changed = false;
-    for (PanelPoint& p : points) {
-      const Eigen::Vector3d& x = p.point_in_world;
-      const double lhs = (x.z() + a * x.x() + b * x.y() - h0 - v * time_of(p)) / scale;
-      int best_laser = -1;
-      double best = new_gate;
-      for (int k = 0; k < lasers; ++k) {
-        const double r = lhs - c[k] / scale;
-        if (std::abs(r) < best) {
-          best = std::abs(r);
-          best_laser = k;
-          p.residual_mm = r;
-        }
-      }
-      changed |= best_laser != p.laser;
-      p.laser = best_laser;
-    }
-    const bool converged = iteration > 0 && !changed && std::abs(new_gate - gate) < 1e-3;
-    gate = new_gate;
-    if (converged) break;
+  }
+  if (joint.tilt_dropped)
+    result.warnings.push_back("laser lines on one panel only: tilt not fitted (assumed level)");
+  const double a = joint.a, b = joint.b, h0 = joint.h0, v = joint.v;
+  const std::vector<double>& c = joint.c;
+  for (PanelPoint& p : points) p.point_in_world += p.point_per_offset_mm * joint.delta[p.panel];
+  std::vector<size_t> panel_inliers(panels, 0);
+  for (const PanelPoint& p : points)
+    if (p.laser >= 0) ++panel_inliers[p.panel];
+  std::vector<std::string> unmeasured;
+  for (int p = 0; p < panels; ++p) {
+    PanelOffset offset;
+    offset.name = cabinet.panels[p].name;
+    offset.assumed_mm = p < static_cast<int>(cabinet.panel_offset_mm.size())
+                            ? cabinet.panel_offset_mm[p]
+                            : std::numeric_limits<double>::quiet_NaN();
+    offset.std_error_mm = joint.offset_std_mm[p];
+    offset.inliers = panel_inliers[p];
+    if (free_offset[p]) offset.measured_mm = offset.assumed_mm + joint.delta[p];
+    if (options.fit_panel_offsets && !free_offset[p] && panel_inliers[p] > 0)
+      unmeasured.push_back(offset.name);
+    result.panel_offsets.push_back(offset);
+  }
+  if (!unmeasured.empty()) {
+    std::string names;
+    for (const std::string& name : unmeasured) names += (names.empty() ? "" : ", ") + name;
+    result.warnings.push_back(
+        "panel offset not measured from this scan (" + names + "): " +
+        (centres.size() < 2
+             ? "one camera cannot tell it from the sweep's scale, two cameras can"
+             : Format("its standard error exceeds %.2f mm", options.max_panel_offset_std_mm)) +
+        "; the calibration's is used");
   }
 
   const double scale = std::sqrt(a * a + b * b + 1.0);

@@ -6,6 +6,7 @@
 // laser plane in every frame.
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -49,6 +50,7 @@ struct LaserCabinet {
   std::vector<Camera> cameras;
   std::vector<PlanarRectangle> mirrors;
   std::vector<PlanarRectangle> panels;
+  std::vector<double> panel_offset_mm;  // per panel: how far behind its mirror it is taken to be
   int laser_count = 1;
   double nominal_spacing_mm = 200.0;  // laser k sits about k·spacing above laser 0
   double nominal_speed_mm_s = 0.0;    // 0: unknown, searched over (0, 1000] mm/s
@@ -81,6 +83,12 @@ struct LaserHeightOptions {
   double gate_mm = 10.0;
   double min_gate_mm = 0.3;
   bool fit_tilt = true;
+  // Fit how far each panel stands behind its mirror. Two cameras at different heights see
+  // a wrong offset move the same line up in one and down in the other; one camera alone
+  // cannot tell a common offset from a scale of the whole sweep, so a panel whose offset
+  // is less certain than max_panel_offset_std_mm keeps the cabinet's.
+  bool fit_panel_offsets = true;
+  double max_panel_offset_std_mm = 0.1;
 };
 
 // A peak whose camera ray meets a panel directly.
@@ -89,7 +97,9 @@ struct PanelPoint {
   int panel = 0;
   uint16_t u = 0;
   float v = 0;
-  Eigen::Vector3d point_in_world;
+  Eigen::Vector3d point_in_world;  // on the panel at its fitted offset
+  // How point_in_world moves along the ray per mm the panel stands further back.
+  Eigen::Vector3d point_per_offset_mm = Eigen::Vector3d::Zero();
   int laser = -1;            // -1: an outlier (not on any laser line)
   double residual_mm = 0.0;  // signed distance to its laser plane (inliers)
 };
@@ -135,9 +145,21 @@ struct ReadbackCheck {
   double speed_mm_s = 0.0;  // slope of the readback over time
 };
 
+struct PanelOffset {
+  std::string name;
+  double assumed_mm = 0.0;  // the cabinet's (calibration.json)
+  // assumed + fitted change; NaN when this scan cannot measure it (then assumed is used).
+  double measured_mm = std::numeric_limits<double>::quiet_NaN();
+  double std_error_mm = std::numeric_limits<double>::infinity();
+  size_t inliers = 0;
+  bool measured() const { return std::isfinite(measured_mm); }
+  double used_mm() const { return measured() ? measured_mm : assumed_mm; }
+};
+
 struct LaserHeightResult {
   LaserFit fit;
-  double residual_rms_mm = 0.0;  // inliers' distance to their laser plane
+  std::vector<PanelOffset> panel_offsets;  // per panel
+  double residual_rms_mm = 0.0;            // inliers' distance to their laser plane
   double residual_max_mm = 0.0;
   double frame_rms_mm = 0.0;  // per-frame measured height against the line
   double frame_max_mm = 0.0;

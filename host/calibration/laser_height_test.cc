@@ -136,6 +136,16 @@ TEST(LaserHeight, LevelLasersWithinTenthOfMillimetre) {
   EXPECT_GT(result.residual_rms_mm, 0.0);
   EXPECT_LT(result.residual_rms_mm, 0.1);
   EXPECT_LT(result.residual_max_mm, 0.5);  // the gate closed in from its first 10 mm
+  // Two cameras at different heights measure how far each panel stands behind its mirror.
+  ASSERT_EQ(result.panel_offsets.size(), 2u);
+  for (const PanelOffset& offset : result.panel_offsets) {
+    std::printf("%s: %.4f mm behind its mirror (std error %.4f mm, truth 6), %zu inliers\n",
+                offset.name.c_str(), offset.measured_mm, offset.std_error_mm, offset.inliers);
+    ASSERT_TRUE(offset.measured()) << offset.name;
+    EXPECT_NEAR(offset.measured_mm, 6.0, 0.1) << offset.name;
+    EXPECT_EQ(offset.assumed_mm, 6.0);
+    EXPECT_LT(offset.std_error_mm, 0.1);
+  }
   // All three lasers are seen on the panels, from each side.
   for (size_t k = 0; k < 3; ++k) EXPECT_GT(result.inliers_per_laser.at(k), 1000u) << k;
   ExpectAssignmentsTrue(result, sweep);
@@ -150,6 +160,16 @@ TEST(LaserHeight, LevelLasersWithinTenthOfMillimetre) {
 TEST(LaserHeight, TiltRecovered) {
   const Sweep& sweep = TiltedSweep();
   const LaserHeightResult result = EstimateLaserHeights(sweep.frames, CabinetOf(sweep));
+  // One camera cannot tell a panel's offset from the sweep's scale: kept, and said so.
+  for (const PanelOffset& offset : result.panel_offsets) {
+    EXPECT_FALSE(offset.measured()) << offset.name << " " << offset.std_error_mm;
+    EXPECT_EQ(offset.used_mm(), 6.0);
+  }
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_NE(result.warnings[0].find("panel offset not measured from this scan (left panel, "
+                                    "right panel): one camera"),
+            std::string::npos)
+      << result.warnings[0];
   const HeightErrors errors = CompareWithTruth(result, sweep);
   const Eigen::Vector2d tilt = result.fit.TiltDeg();
   std::printf(
@@ -166,6 +186,44 @@ TEST(LaserHeight, TiltRecovered) {
   level.fit_tilt = false;
   const LaserHeightResult untilted = EstimateLaserHeights(sweep.frames, CabinetOf(sweep), level);
   EXPECT_GT(untilted.residual_rms_mm, 2 * result.residual_rms_mm);
+}
+
+// The panels stand 9 mm (left) and 4.5 mm (right) behind their mirrors where the
+// calibration says 6: the fit measures both and its heights stay true, where keeping the
+// calibration's offsets would put them off.
+TEST(LaserHeight, PanelsOffTheirNominalPlaceAreMeasured) {
+  Sweep sweep =
+      RenderSweep({{"panels", {{"left_offset_mm", 9.0}, {"right_offset_mm", 4.5}}}}, 6, 2);
+  for (CalibrationMirror& mirror : sweep.calibration.mirrors) mirror.panel_offset_mm = 6.0;
+  const LaserCabinet cabinet = CabinetOf(sweep);
+  const LaserHeightResult result = EstimateLaserHeights(sweep.frames, cabinet);
+  const HeightErrors errors = CompareWithTruth(result, sweep);
+  ASSERT_EQ(result.panel_offsets.size(), 2u);
+  const double truth[2] = {9.0, 4.5};
+  for (int side = 0; side < 2; ++side) {
+    const PanelOffset& offset = result.panel_offsets[side];
+    std::printf("%s: measured %.4f mm (std error %.4f mm), truth %.1f, calibration %.1f\n",
+                offset.name.c_str(), offset.measured_mm, offset.std_error_mm, truth[side],
+                offset.assumed_mm);
+    ASSERT_TRUE(offset.measured());
+    EXPECT_NEAR(offset.measured_mm, truth[side], 0.1);
+    EXPECT_EQ(offset.assumed_mm, 6.0);
+  }
+  EXPECT_LT(errors.max, 0.1);
+  ExpectAssignmentsTrue(result, sweep);
+
+  LaserHeightOptions kept;
+  kept.fit_panel_offsets = false;
+  const LaserHeightResult nominal = EstimateLaserHeights(sweep.frames, cabinet, kept);
+  const HeightErrors nominal_errors = CompareWithTruth(nominal, sweep);
+  std::printf(
+      "heights: offsets measured RMS %.4f max %.4f mm; kept at 6 mm RMS %.4f max %.4f mm, "
+      "residual RMS %.3f against %.3f mm\n",
+      errors.rms, errors.max, nominal_errors.rms, nominal_errors.max, result.residual_rms_mm,
+      nominal.residual_rms_mm);
+  EXPECT_FALSE(nominal.panel_offsets[0].measured());
+  EXPECT_GT(nominal_errors.max, 3 * errors.max);
+  EXPECT_GT(nominal.residual_rms_mm, 2 * result.residual_rms_mm);
 }
 
 // The subject occludes a panel for a while, the body shows stripes near the panel rows,
