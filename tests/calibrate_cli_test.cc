@@ -92,8 +92,11 @@ TEST(CalibrateCli, IntrinsicsBadInputIsOneClearLine) {
 
 TEST(CalibrateCli, LasersOfASimulatedScan) {
   const fs::path dir = TempDir("lasers");
-  const std::string scene =
-      std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/mannequin.json";
+  // The mannequin with a fast slide, so that 15 frames (0.47 s) take the lasers past both
+  // cameras' views of the panels.
+  const std::string scene = (dir / "fast.json").string();
+  std::ofstream(scene) << R"({"subject": {"type": "mannequin"}, "lasers": {"speed_mm_s": 2400},
+                             "frames": 300, "seed": 1})";
   ASSERT_EQ(RunMirrorscan("sim scan --scene " + scene + " --frames 15 --no-images --out " +
                           dir.string() + " --peaks " + (dir / "scan.mscan").string())
                 .exit_code,
@@ -108,15 +111,52 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   for (const nlohmann::json& frame : lasers["frames"]) {
     const double t = frame["time_s"].get<double>();
     for (int k = 0; k < 3; ++k) {
-      // The mannequin scene's lasers: -50 mm at t = 0, 150 mm/s, 200 mm apart.
-      EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 150.0 * t + 200.0 * k, 0.1);
+      // The scene's lasers: -50 mm at t = 0, 2400 mm/s, 200 mm apart.
+      EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 2400.0 * t + 200.0 * k, 0.1);
     }
   }
   EXPECT_GT(lasers["residual_rms_mm"].get<double>(), 0.0);
   EXPECT_LT(lasers["residual_max_mm"].get<double>(), 0.5);
   EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
   const nlohmann::json fitted = ReadJson(dir / "fitted.json");
-  EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 150.0, 0.1);
+  EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 2400.0, 0.1);
+  // Two cameras measure the panels 6 mm behind their mirrors; the fitted calibration keeps
+  // what was measured.
+  EXPECT_TRUE(lasers["ok"].get<bool>());
+  ASSERT_EQ(lasers["panel_offsets"].size(), 2u);
+  for (int side = 0; side < 2; ++side) {
+    const nlohmann::json& offset = lasers["panel_offsets"][side];
+    EXPECT_NEAR(offset["measured_mm"].get<double>(), 6.0, 0.1) << offset;
+    EXPECT_TRUE(offset["ok"].get<bool>());
+    EXPECT_EQ(fitted["mirrors"][side]["panel_offset_mm"].get<double>(),
+              offset["measured_mm"].get<double>());
+  }
+
+  // The calibration says the panels stand 9 mm back; they stand 6: a clear failure, the
+  // measurement in lasers.json, no calibration written.
+  nlohmann::json moved = ReadJson(dir / "calibration.json");
+  for (auto& mirror : moved["mirrors"]) mirror["panel_offset_mm"] = 9.0;
+  moved.erase("content_hash");
+  std::ofstream(dir / "moved.json") << moved.dump();
+  const Result off = RunMirrorscan(
+      "calibrate-lasers " + (dir / "scan.mscan").string() + " --calibration " +
+      (dir / "moved.json").string() + " --board " + std::string(MIRRORSCAN_SOURCE_DIR) +
+      "/boards/virtual/board.json --out " + (dir / "moved-lasers.json").string() +
+      " --calibration-out " + (dir / "moved-fitted.json").string());
+  EXPECT_EQ(off.exit_code, 1) << off.out;
+  EXPECT_NE(off.out.find("calibrate-lasers: FAIL: left panel: measured 6.0"), std::string::npos)
+      << off.out;
+  EXPECT_NE(off.out.find("the calibration says 9.00 mm (limit ± 1 mm): check how the panel is "
+                         "mounted"),
+            std::string::npos)
+      << off.out;
+  EXPECT_NE(off.out.find("FAIL: right panel"), std::string::npos) << off.out;
+  EXPECT_NE(off.out.find("no calibration written"), std::string::npos) << off.out;
+  EXPECT_FALSE(fs::exists(dir / "moved-fitted.json"));
+  const nlohmann::json moved_lasers = ReadJson(dir / "moved-lasers.json");
+  EXPECT_FALSE(moved_lasers["ok"].get<bool>());
+  EXPECT_EQ(moved_lasers["failures"].size(), 2u);
+  EXPECT_NEAR(moved_lasers["panel_offsets"][0]["measured_mm"].get<double>(), 6.0, 0.1);
 
   // A calibration whose mirrors have no corners cannot say where the panels are.
   nlohmann::json calibration = ReadJson(dir / "calibration.json");

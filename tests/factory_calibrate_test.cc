@@ -1,7 +1,8 @@
 // scripts/factory-calibrate against the real mirrorscand on the virtual board, its cameras
-// rendering the three-panel target: a good target passes and the device ends up holding
-// exactly the calibration computed on the host; a target out of place fails with a reason
-// and leaves the device's calibration untouched.
+// rendering the three-panel target and a laser sweep: a good cabinet passes and the device
+// ends up holding exactly the calibration computed on the host, with the panels' offsets
+// measured; a target or a panel out of place fails with a reason and leaves the device's
+// calibration untouched.
 #include <signal.h>
 
 #include <chrono>
@@ -76,8 +77,9 @@ class FactoryCalibrateTest : public ::testing::Test {
   }
 
   Result FactoryCalibrate(const fs::path& out) {
+    // On the virtual board laser 0 rides 50 mm below the slide's readback.
     return Shell((kSource / "scripts/factory-calibrate").string() + " --host " + host_ + " --out " +
-                 out.string());
+                 out.string() + " --readback-offset 50");
   }
 
   fs::path dir_;
@@ -109,6 +111,37 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
       EXPECT_LT(view["rms_after_px"].get<double>(), 0.15) << camera["name"] << view["view"];
     }
   }
+  // The laser sweep measured the panels (6 mm behind the mirrors in the scene) through the
+  // calibration just made, whose own small errors limit it to a few tenths of a mm; what
+  // was measured is what the device holds.
+  const json lasers = json::parse(ReadFile(dir_ / "out/lasers.json"));
+  EXPECT_TRUE(lasers["ok"].get<bool>());
+  EXPECT_NEAR(lasers["spacing_mm"].get<double>(), 200.0, 0.1);
+  for (int side = 0; side < 2; ++side) {
+    const json& offset = lasers["panel_offsets"][side];
+    EXPECT_NEAR(offset["measured_mm"].get<double>(), 6.0, 0.5) << offset;
+    EXPECT_EQ(computed["mirrors"][side]["panel_offset_mm"], offset["measured_mm"]);
+  }
+  EXPECT_NE(run.out.find("PASS: left panel 6."), std::string::npos) << run.out;
+  EXPECT_NEAR(computed["lasers"]["spacing_mm"].get<double>(), 200.0, 0.1);
+}
+
+TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {
+  // The left panel stands 9 mm behind its mirror; the board says 6 (limit ±1 mm).
+  json scene = json::parse(ReadFile(kSource / "boards/virtual/scenes/calibration.json"));
+  scene["panels"]["left_offset_mm"] = 9.0;
+  const fs::path scene_file = dir_ / "moved-panel.json";
+  std::ofstream(scene_file) << scene.dump(2);
+  StartDaemon(scene_file);
+
+  const Result run = FactoryCalibrate(dir_ / "out");
+  EXPECT_EQ(run.exit_code, 1) << run.out;
+  EXPECT_NE(run.out.find("FAIL: left panel: measured 9."), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("check how the panel is mounted"), std::string::npos) << run.out;
+  EXPECT_EQ(run.out.find("FAIL: right panel"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("the device's calibration is unchanged"), std::string::npos) << run.out;
+  EXPECT_FALSE(fs::exists(dir_ / "data/calibration.json"));
+  EXPECT_FALSE(fs::exists(dir_ / "out/calibration.json"));
 }
 
 TEST_F(FactoryCalibrateTest, TargetOutOfPlaceFailsAndUploadsNothing) {
@@ -124,6 +157,7 @@ TEST_F(FactoryCalibrateTest, TargetOutOfPlaceFailsAndUploadsNothing) {
   EXPECT_NE(run.out.find("FAIL"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("out of place"), std::string::npos) << run.out;
   EXPECT_FALSE(fs::exists(dir_ / "data/calibration.json"));
+  EXPECT_FALSE(fs::exists(dir_ / "out/target-calibration.json"));
   EXPECT_FALSE(fs::exists(dir_ / "out/calibration.json"));
 }
 

@@ -52,15 +52,22 @@ std::unique_ptr<hal::Camera> MakeCamera(const BoardConfig& config, const BoardCa
   for (size_t i = 0; i < devices.virtual_lasers.size(); ++i) {
     lasers.emplace_back(devices.virtual_lasers[i], config.gpio.lasers[i].active_low);
   }
-  // The scene sees the true slide (the simulation's state, not the Modbus readback) and
-  // the laser lines' levels.
-  return devices.cabinet->MakeCamera(
-      camera.scene_camera, [sim] { return sim->State().model.position_mm; },
-      [lasers] {
-        return std::any_of(lasers.begin(), lasers.end(), [](const auto& line) {
-          return hal::ActiveLevelLine::ToActive(line.first->driven(), line.second);
-        });
-      });
+  // The scene sees the true slide (the simulation's state, not the Modbus readback) where
+  // it was at the frame's exposure: the camera thread renders later, by up to a frame
+  // period when it runs late, and the slide has moved on by then. The model moves at its
+  // set speed until the goal.
+  const auto slide_at = [sim](int64_t exposure_ns) {
+    const virtual_cabinet::DriveModelState state = sim->State().model;
+    if (!state.moving || exposure_ns >= state.time_ns) return state.position_mm;
+    const double direction = state.goal_mm >= state.position_mm ? 1.0 : -1.0;
+    return state.position_mm -
+           direction * state.speed_mm_s * static_cast<double>(state.time_ns - exposure_ns) * 1e-9;
+  };
+  return devices.cabinet->MakeCamera(camera.scene_camera, slide_at, [lasers] {
+    return std::any_of(lasers.begin(), lasers.end(), [](const auto& line) {
+      return hal::ActiveLevelLine::ToActive(line.first->driven(), line.second);
+    });
+  });
 }
 
 }  // namespace

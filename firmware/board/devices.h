@@ -19,9 +19,10 @@ class VirtualCabinet {
  public:
   virtual ~VirtualCabinet() = default;
   // A camera rendering scene camera `scene_camera`; each frame at the slide position
-  // slide_mm() (mm along the slide) with lasers_on(). Throws HardwareError.
+  // slide_mm(its exposure time, steady ns) (mm along the slide) with lasers_on(). Throws
+  // HardwareError.
   virtual std::unique_ptr<hal::Camera> MakeCamera(int scene_camera,
-                                                  std::function<double()> slide_mm,
+                                                  std::function<double(int64_t)> slide_mm,
                                                   std::function<bool()> lasers_on) = 0;
 };
 

@@ -17,7 +17,7 @@ class RenderedCabinet final : public VirtualCabinet {
   RenderedCabinet(virtual_cabinet::Scene scene, double sweep_start_mm)
       : scene_(std::move(scene)), renderer_(scene_), sweep_start_mm_(sweep_start_mm) {}
 
-  std::unique_ptr<hal::Camera> MakeCamera(int scene_camera, std::function<double()> slide_mm,
+  std::unique_ptr<hal::Camera> MakeCamera(int scene_camera, std::function<double(int64_t)> slide_mm,
                                           std::function<bool()> lasers_on) override {
     if (scene_camera < 0 || scene_camera >= static_cast<int>(scene_.cameras.size())) {
       throw hal::HardwareError(hal::HardwareError::Kind::kInvalidArgument,
@@ -34,8 +34,8 @@ class RenderedCabinet final : public VirtualCabinet {
     const double speed = scene_.lasers.speed_mm_s;
     // Laser k is at start + speed·t + k·spacing: the slide's travel since the sweep start
     // is speed·t.
-    options.slide_time = [slide_mm = std::move(slide_mm), start_mm, speed] {
-      return (slide_mm() - start_mm) / speed;
+    options.slide_time = [slide_mm = std::move(slide_mm), start_mm, speed](int64_t exposure_ns) {
+      return (slide_mm(exposure_ns) - start_mm) / speed;
     };
     options.lasers_on = std::move(lasers_on);
     return std::make_unique<virtual_cabinet::VirtualCamera>(renderer_, std::move(options));

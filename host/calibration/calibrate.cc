@@ -606,8 +606,8 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
     const JsonReader l = r.Object("limits");
     l.AllowOnly({"max_rms_px", "min_markers_per_view", "min_contrast_dn", "max_edge_sigma_px",
                  "min_white_dn", "min_mirror_angle_deg", "max_mirror_angle_deg",
-                 "max_mirror_tilt_deg", "max_corner_offset_mm", "max_yaw_deg",
-                 "verify_max_rms_px"});
+                 "max_mirror_tilt_deg", "max_corner_offset_mm", "max_yaw_deg", "verify_max_rms_px",
+                 "max_panel_offset_error_mm"});
     CalibrationLimits& x = s.limits;
     x.max_rms_px = l.Number("max_rms_px", x.max_rms_px, 0.001, 100.0);
     x.min_markers_per_view = l.Integer("min_markers_per_view", x.min_markers_per_view, 4,
@@ -622,6 +622,8 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
     x.max_corner_offset_mm = l.Number("max_corner_offset_mm", x.max_corner_offset_mm, 0.0, 1e4);
     x.max_yaw_deg = l.Number("max_yaw_deg", x.max_yaw_deg, 0.0, 180.0);
     x.verify_max_rms_px = l.Number("verify_max_rms_px", x.verify_max_rms_px, 0.001, 100.0);
+    x.max_panel_offset_error_mm =
+        l.Number("max_panel_offset_error_mm", x.max_panel_offset_error_mm, 0.01, 1000.0);
   }
   return s;
 }

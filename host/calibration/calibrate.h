@@ -33,6 +33,8 @@ struct CalibrationLimits {
   double max_corner_offset_mm = 20.0;  // mirrors' meeting line from its nominal place
   double max_yaw_deg = 1.0;            // cabinet symmetry axis from world +y
   double verify_max_rms_px = 0.5;      // --verify: stored calibration against a new image
+  // calibrate-lasers: a panel measured further than this from panel_offset_mm is out of place.
+  double max_panel_offset_error_mm = 1.0;
 };
 
 // board.json's "calibration" section (every key optional) plus the camera names.
@@ -43,7 +45,8 @@ struct CalibrationSettings {
   double mirror_width_mm = 620.0;  // nominal reflecting rectangle, for the view regions
   double mirror_height_mm = 1700.0;
   double mirror_bottom_mm = 100.0;
-  double panel_offset_mm = 6.0;              // nominal; one target image cannot measure it
+  double panel_offset_mm =
+      6.0;  // nominal; one target image cannot see it, a laser sweep measures it
   Eigen::Vector2d corner_xy_mm{0.0, 600.0};  // where the mirrors meet, nominal
   CalibrationLimits limits;
 

@@ -11,6 +11,7 @@
 
 #include "common/config/calibration.h"
 #include "common/scan_format/scan_format.h"
+#include "host/calibration/calibrate.h"
 #include "host/calibration/laser_height.h"
 
 namespace mirrorscan::cli {
@@ -22,12 +23,20 @@ struct LasersOptions {
   std::string calibration;
   std::string out;
   std::string calibration_out;
+  std::string board;
   double panel_margin_mm = 120.0;
   double readback_offset_mm = 0.0;
   double readback_tolerance_mm = 1.0;
   bool no_tilt = false;
+  bool keep_panel_offsets = false;
   bool json = false;
 };
+
+std::string Format(const char* format, auto... args) {
+  char buffer[1024];
+  std::snprintf(buffer, sizeof(buffer), format, args...);
+  return buffer;
+}
 
 nlohmann::json NumberOrNull(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
@@ -56,8 +65,37 @@ std::vector<Camera> CamerasOf(const ScanArchive& archive, const Calibration& cal
   return cameras;
 }
 
-nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o) {
+// A panel measured further from the calibration's offset than the limit stands out of
+// place: one line each, saying what to do.
+std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& r, double limit_mm) {
+  std::vector<std::string> failures;
+  for (const PanelOffset& offset : r.panel_offsets) {
+    if (!offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm)
+      continue;
+    failures.push_back(Format(
+        "%s: measured %.2f mm (± %.3f) behind its mirror, the calibration says %.2f mm "
+        "(limit ± %g mm): check how the panel is mounted; if it is meant to stand there, set "
+        "calibration.panel_offset_mm in board.json and calibrate again",
+        offset.name.c_str(), offset.measured_mm, offset.std_error_mm, offset.assumed_mm, limit_mm));
+  }
+  return failures;
+}
+
+nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, double limit_mm,
+                          const std::vector<std::string>& failures) {
   const LaserFit& fit = r.fit;
+  nlohmann::json panel_offsets = nlohmann::json::array();
+  for (const PanelOffset& offset : r.panel_offsets) {
+    panel_offsets.push_back(
+        {{"name", offset.name},
+         {"assumed_mm", offset.assumed_mm},
+         {"measured_mm", NumberOrNull(offset.measured_mm)},
+         {"std_error_mm", NumberOrNull(offset.std_error_mm)},
+         {"inliers", offset.inliers},
+         {"limit_mm", limit_mm},
+         {"ok",
+          !offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm}});
+  }
   nlohmann::json frames = nlohmann::json::array();
   for (const FrameLaserHeights& f : r.frames) {
     frames.push_back({{"frame", f.frame},
@@ -82,6 +120,8 @@ nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o) {
   const Eigen::Vector2d tilt = fit.TiltDeg();
   return {{"schema", "mirrorscan.lasers"},
           {"version", 1},
+          {"ok", failures.empty()},
+          {"failures", failures},
           {"scan", o.scan},
           {"calibration", o.calibration},
           {"note",
@@ -102,6 +142,7 @@ nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o) {
           {"panel_points", r.candidates},
           {"inliers", r.inliers},
           {"inliers_per_laser", r.inliers_per_laser},
+          {"panel_offsets", panel_offsets},
           {"readback", readback},
           {"warnings", r.warnings},
           {"frames", frames}};
@@ -140,20 +181,32 @@ void Run(const LasersOptions& o) {
       header["slide"].contains("speed_mm_s") && header["slide"]["speed_mm_s"].is_number())
     cabinet.nominal_speed_mm_s = header["slide"]["speed_mm_s"].get<double>();
 
+  const calibration::CalibrationLimits limits =
+      o.board.empty() ? calibration::CalibrationLimits{}
+                      : calibration::CalibrationSettings::LoadBoard(o.board).limits;
   LaserHeightOptions options;
   if (header.contains("start_steady_ns") && header["start_steady_ns"].is_number_integer())
     options.time_origin_ns = header["start_steady_ns"].get<int64_t>();
   options.readback_offset_mm = o.readback_offset_mm;
   options.readback_tolerance_mm = o.readback_tolerance_mm;
   options.fit_tilt = !o.no_tilt;
+  options.fit_panel_offsets = !o.keep_panel_offsets;
   std::fprintf(stderr, "calibrate-lasers: %zu frames, %d laser(s); fitting...\n",
                archive.frames.size(), cabinet.laser_count);
   const LaserHeightResult result = EstimateLaserHeights(archive.frames, cabinet, options);
   for (const std::string& warning : result.warnings)
     std::fprintf(stderr, "calibrate-lasers: warning: %s\n", warning.c_str());
 
-  const nlohmann::json json = ResultJson(result, o);
+  const std::vector<std::string> failures =
+      PanelOffsetFailures(result, limits.max_panel_offset_error_mm);
+  const nlohmann::json json = ResultJson(result, o, limits.max_panel_offset_error_mm, failures);
   WriteText(o.out, "--out", json.dump(2) + "\n");
+  if (!failures.empty()) {
+    for (const std::string& failure : failures)
+      std::fprintf(stderr, "calibrate-lasers: FAIL: %s\n", failure.c_str());
+    throw std::runtime_error("laser calibration failed its checks (" + o.out + ")" +
+                             (o.calibration_out.empty() ? "" : "; no calibration written"));
+  }
   if (!o.calibration_out.empty()) {
     Calibration updated = calibration;
     CalibrationLasers lasers;
@@ -164,6 +217,9 @@ void Run(const LasersOptions& o) {
     lasers.height_at_t0_mm = result.fit.height_at_t0_mm;
     lasers.speed_mm_s = result.fit.speed_mm_s;
     updated.lasers = lasers;
+    // The panels are built from the mirrors in order.
+    for (size_t i = 0; i < result.panel_offsets.size(); ++i)
+      updated.mirrors.at(i).panel_offset_mm = result.panel_offsets[i].used_mm();
     WriteText(o.calibration_out, "--calibration-out", updated.ToJson().dump(2) + "\n");
   }
   if (o.json) {
@@ -181,6 +237,14 @@ void Run(const LasersOptions& o) {
       "per-frame heights vs line RMS %.3f mm (max %.3f)\n",
       result.inliers, result.candidates, result.residual_rms_mm, result.residual_max_mm,
       result.frame_rms_mm, result.frame_max_mm);
+  for (const PanelOffset& offset : result.panel_offsets) {
+    if (offset.measured())
+      std::printf("%s: %.3f mm behind its mirror (± %.3f; calibration %.3f)\n", offset.name.c_str(),
+                  offset.measured_mm, offset.std_error_mm, offset.assumed_mm);
+    else
+      std::printf("%s: %.3f mm behind its mirror (calibration's; not measured)\n",
+                  offset.name.c_str(), offset.assumed_mm);
+  }
   if (result.readback) {
     std::printf("readback: %zu frames, readback − laser 0 median %.3f mm, max deviation %.3f mm\n",
                 result.readback->frames, result.readback->offset_mm, result.readback->max_error_mm);
@@ -195,7 +259,8 @@ void AddCalibrateLasersCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "calibrate-lasers",
       "Laser planes for every frame of a scan, from the laser lines on the panels beside the "
-      "mirrors (constant slide speed; per-laser offsets and tilt fitted)");
+      "mirrors (constant slide speed; per-laser offsets, tilt and, with two cameras, the "
+      "panels' offsets fitted)");
   cmd->add_option("SCAN", options->scan, "Scan archive (.mscan)")
       ->required()
       ->check(CLI::ExistingFile);
@@ -205,7 +270,12 @@ void AddCalibrateLasersCommand(CLI::App& app) {
   cmd->add_option("--out", options->out, "Write lasers.json (the fit and every frame's heights)")
       ->required();
   cmd->add_option("--calibration-out", options->calibration_out,
-                  "Also write the calibration with its \"lasers\" set from this scan's fit");
+                  "Also write the calibration with its \"lasers\" and measured panel offsets set "
+                  "from this scan's fit (only when its checks pass)");
+  cmd->add_option("--board", options->board,
+                  "board.json whose calibration.limits.max_panel_offset_error_mm to check "
+                  "(default 1 mm)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--panel-margin", options->panel_margin_mm,
                   "How far the panels reach beyond each mirror's outer edge and top, mm")
       ->capture_default_str();
@@ -216,6 +286,8 @@ void AddCalibrateLasersCommand(CLI::App& app) {
                   "Warn when the readback is further than this from the fitted line, mm")
       ->capture_default_str();
   cmd->add_flag("--no-tilt", options->no_tilt, "Assume level laser planes");
+  cmd->add_flag("--keep-panel-offsets", options->keep_panel_offsets,
+                "Use the calibration's panel offsets, do not measure them");
   cmd->add_flag("--json", options->json, "Print lasers.json");
   cmd->callback([options] { Run(*options); });
 }

@@ -44,9 +44,11 @@ hal::ThreadedCamera::Produced VirtualCamera::Plan(uint64_t sequence) {
   return Produced::kFrame;
 }
 
-hal::ThreadedCamera::Produced VirtualCamera::Produce(uint64_t sequence, int64_t /*timestamp_ns*/,
+hal::ThreadedCamera::Produced VirtualCamera::Produce(uint64_t sequence, int64_t timestamp_ns,
                                                      uint8_t* pixels) {
-  const double t = options_.slide_time();
+  // Rendering starts when the camera thread gets to it, which may be later than the
+  // frame's exposure time: the frame shows the slide where it was at exposure.
+  const double t = options_.slide_time(timestamp_ns);
   const bool lasers = options_.lasers_on ? options_.lasers_on() : true;
   const GrayImage image = renderer_.RenderFrame(options_.camera, t, sequence, lasers);
   std::copy(image.pixels.begin(), image.pixels.end(), pixels);

@@ -11,15 +11,16 @@ namespace mirrorscan::virtual_cabinet {
 
 struct VirtualCameraOptions {
   int camera = 0;  // index into the scene's cameras
-  // The slide time in seconds at the moment of exposure; the firmware's simulated drive
-  // (or a test) drives it. Required.
-  std::function<double()> slide_time;
+  // The slide time in seconds at the frame's exposure (steady clock, ns); the firmware's
+  // simulated drive (or a test) drives it. Required.
+  std::function<double(int64_t exposure_ns)> slide_time;
   // Whether the lasers are on at the moment of exposure. Empty = always on.
   std::function<bool()> lasers_on;
 };
 
 // A Camera whose frames the virtual cabinet renders: at the configured fps, frame
-// `sequence` is Renderer::RenderFrame(camera, slide_time(), sequence, lasers_on()).
+// `sequence` is Renderer::RenderFrame(camera, slide_time(its timestamp), sequence,
+// lasers_on()).
 // slide_time() and lasers_on() are each called exactly once per rendered frame, on the
 // camera's thread, in sequence order, and never for a stalled or dropped frame.
 //

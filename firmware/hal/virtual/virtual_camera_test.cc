@@ -62,7 +62,7 @@ struct ScriptedSources {
   std::vector<bool> lasers;
   VirtualCameraOptions Options() {
     VirtualCameraOptions o;
-    o.slide_time = [this] {
+    o.slide_time = [this](int64_t) {
       std::lock_guard lock(mutex);
       times.push_back(4.0 + 0.5 * static_cast<double>(times.size()));
       return times.back();
