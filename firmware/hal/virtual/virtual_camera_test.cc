@@ -59,11 +59,13 @@ CameraConfig Config(double fps, int buffers = 16) {
 struct ScriptedSources {
   std::mutex mutex;
   std::vector<double> times;
+  std::vector<int64_t> asked_at_ns;  // the exposure times slide_time was asked for
   std::vector<bool> lasers;
   VirtualCameraOptions Options() {
     VirtualCameraOptions o;
-    o.slide_time = [this](int64_t) {
+    o.slide_time = [this](int64_t exposure_ns) {
       std::lock_guard lock(mutex);
+      asked_at_ns.push_back(exposure_ns);
       times.push_back(4.0 + 0.5 * static_cast<double>(times.size()));
       return times.back();
     };
@@ -100,6 +102,8 @@ TEST(VirtualCamera, FramesAreTheRendererFramesForTheSlideTimeOfTheirExposure) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame& f = frames[i];
     EXPECT_EQ(f.sequence(), i);
+    // The slide is asked where it was when this frame was exposed, not when it is rendered.
+    EXPECT_EQ(sources.asked_at_ns[i], f.timestamp_ns());
     if (i > 0) {
       EXPECT_GT(f.timestamp_ns(), frames[i - 1].timestamp_ns());
     }
