@@ -120,6 +120,11 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
   const nlohmann::json fitted = ReadJson(dir / "fitted.json");
   EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 2400.0, 0.1);
+  // The measured laser offsets, and the readback offset (the sim's readback is laser 0).
+  ASSERT_EQ(fitted["lasers"]["offsets_mm"].size(), 3u);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_NEAR(fitted["lasers"]["offsets_mm"][k].get<double>(), 200.0 * k, 0.1);
+  EXPECT_NEAR(fitted["lasers"]["readback_offset_mm"].get<double>(), 0.0, 0.1);
   // Two cameras measure the panels 6 mm behind their mirrors; the fitted calibration keeps
   // what was measured.
   EXPECT_TRUE(lasers["ok"].get<bool>());

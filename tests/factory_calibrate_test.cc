@@ -124,6 +124,9 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   }
   EXPECT_NE(run.out.find("PASS: left panel 6."), std::string::npos) << run.out;
   EXPECT_NEAR(computed["lasers"]["spacing_mm"].get<double>(), 200.0, 0.1);
+  EXPECT_NEAR(computed["lasers"]["offsets_mm"][2].get<double>(), 400.0, 0.2);
+  // Measured, so later scans' readback is checked against it without being told.
+  EXPECT_NEAR(computed["lasers"]["readback_offset_mm"].get<double>(), 50.0, 0.1);
 }
 
 TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {

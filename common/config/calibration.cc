@@ -157,13 +157,24 @@ CalibrationMirror ParseMirror(const JsonReader& r) {
 }
 
 CalibrationLasers ParseLasers(const JsonReader& r) {
-  r.AllowOnly({"count", "spacing_mm", "normal", "height_at_t0_mm", "speed_mm_s", "note"});
+  r.AllowOnly({"count", "spacing_mm", "normal", "height_at_t0_mm", "speed_mm_s", "offsets_mm",
+               "readback_offset_mm", "note"});
   CalibrationLasers l;
   l.count = r.Integer("count", std::nullopt, 1, 16);
   l.spacing_mm = r.Number("spacing_mm", std::nullopt, 0.0, 1e4);
   l.normal = UnitVector(r, "normal");
   l.height_at_t0_mm = r.Number("height_at_t0_mm", std::nullopt, -1e5, 1e5);
   l.speed_mm_s = r.Number("speed_mm_s", std::nullopt, -1e5, 1e5);
+  if (r.Has("offsets_mm")) {
+    l.offsets_mm = r.Numbers("offsets_mm", static_cast<size_t>(l.count));
+    if (l.offsets_mm[0] != 0.0) r.Fail("offsets_mm", "must start with laser 0's own offset, 0");
+    for (size_t k = 1; k < l.offsets_mm.size(); ++k) {
+      if (!(l.offsets_mm[k] > l.offsets_mm[k - 1]) || l.offsets_mm[k] > 1e5)
+        r.Fail("offsets_mm", "lasers must be ordered upwards along the slide, within 100 m");
+    }
+  }
+  if (r.Has("readback_offset_mm"))
+    l.readback_offset_mm = r.Number("readback_offset_mm", std::nullopt, -1e5, 1e5);
   return l;
 }
 
@@ -320,6 +331,9 @@ nlohmann::json GeometryJson(const Calibration& c) {
                       {"normal", Vec(c.lasers->normal)},
                       {"height_at_t0_mm", c.lasers->height_at_t0_mm},
                       {"speed_mm_s", c.lasers->speed_mm_s}};
+    if (!c.lasers->offsets_mm.empty()) json["lasers"]["offsets_mm"] = c.lasers->offsets_mm;
+    if (c.lasers->readback_offset_mm)
+      json["lasers"]["readback_offset_mm"] = *c.lasers->readback_offset_mm;
   }
   return json;
 }

@@ -56,9 +56,17 @@ struct CalibrationLasers {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double height_at_t0_mm = 0.0;
   double speed_mm_s = 0.0;
+  // Each laser's height above laser 0 as measured (offsets_mm[0] = 0, ascending); empty:
+  // k · spacing_mm.
+  std::vector<double> offsets_mm;
+  // The slide's position readback minus laser 0's height, as measured; absent: unknown.
+  std::optional<double> readback_offset_mm;
 
+  double OffsetOf(int laser) const {
+    return offsets_mm.empty() ? laser * spacing_mm : offsets_mm.at(laser);
+  }
   Plane PlaneAt(int laser, double t) const {
-    return Plane{normal, -(height_at_t0_mm + speed_mm_s * t + laser * spacing_mm)};
+    return Plane{normal, -(height_at_t0_mm + speed_mm_s * t + OffsetOf(laser))};
   }
 };
 

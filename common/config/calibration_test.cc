@@ -73,6 +73,33 @@ TEST(CalibrationTest, RoundTripsThroughJson) {
   EXPECT_EQ(back.FindMirror("left")->corners_mm.size(), 4u);
   ASSERT_TRUE(back.lasers);
   EXPECT_DOUBLE_EQ(back.lasers->PlaneAt(2, 1.0).offset, -(-50.0 + 150.0 + 400.0));
+  EXPECT_FALSE(back.lasers->readback_offset_mm);
+
+  // Measured per-laser offsets and readback offset round-trip, count in the hash, and
+  // place the planes.
+  Calibration measured = c;
+  measured.lasers->offsets_mm = {0.0, 200.3, 399.6};
+  measured.lasers->readback_offset_mm = 50.01;
+  const Calibration measured_back =
+      Calibration::ParseText(measured.ToJson().dump(), "calibration.json");
+  EXPECT_NE(measured_back.ContentHash(), c.ContentHash());
+  EXPECT_EQ(measured_back.lasers->offsets_mm, measured.lasers->offsets_mm);
+  EXPECT_EQ(measured_back.lasers->readback_offset_mm, 50.01);
+  EXPECT_DOUBLE_EQ(measured_back.lasers->PlaneAt(2, 1.0).offset, -(-50.0 + 150.0 + 399.6));
+  for (const auto& [offsets, problem] : std::vector<std::pair<nlohmann::json, std::string>>{
+           {{0.0, 200.0}, "lasers.offsets_mm: expected an array of 3 numbers"},
+           {{1.0, 200.0, 400.0}, "lasers.offsets_mm: must start with laser 0's own offset, 0"},
+           {{0.0, 400.0, 200.0}, "lasers.offsets_mm: lasers must be ordered upwards"}}) {
+    nlohmann::json bad = measured.ToJson();
+    bad.erase("content_hash");
+    bad["lasers"]["offsets_mm"] = offsets;
+    try {
+      Calibration::Parse(bad, "calibration.json");
+      ADD_FAILURE() << offsets;
+    } catch (const ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(problem), std::string::npos) << e.what();
+    }
+  }
   EXPECT_EQ(back.residuals.views.at(0).points, 256);
   EXPECT_EQ(back.target_id, "virtual-3panel-aruco48");
 }

@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,7 +26,7 @@ struct LasersOptions {
   std::string calibration_out;
   std::string board;
   double panel_margin_mm = 120.0;
-  double readback_offset_mm = 0.0;
+  std::optional<double> readback_offset_mm;  // default: the calibration's, else 0
   double readback_tolerance_mm = 1.0;
   bool no_tilt = false;
   bool keep_panel_offsets = false;
@@ -82,6 +83,7 @@ std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& r, double 
 }
 
 nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, double limit_mm,
+                          double expected_readback_offset_mm,
                           const std::vector<std::string>& failures) {
   const LaserFit& fit = r.fit;
   nlohmann::json panel_offsets = nlohmann::json::array();
@@ -111,7 +113,7 @@ nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, do
   if (r.readback) {
     readback = {{"frames", r.readback->frames},
                 {"offset_mm", r.readback->offset_mm},
-                {"expected_offset_mm", o.readback_offset_mm},
+                {"expected_offset_mm", expected_readback_offset_mm},
                 {"max_error_mm", r.readback->max_error_mm},
                 {"frames_off", r.readback->frames_off},
                 {"tolerance_mm", o.readback_tolerance_mm},
@@ -187,7 +189,9 @@ void Run(const LasersOptions& o) {
   LaserHeightOptions options;
   if (header.contains("start_steady_ns") && header["start_steady_ns"].is_number_integer())
     options.time_origin_ns = header["start_steady_ns"].get<int64_t>();
-  options.readback_offset_mm = o.readback_offset_mm;
+  // A readback offset measured at calibration is what later scans are checked against.
+  options.readback_offset_mm = o.readback_offset_mm.value_or(
+      calibration.lasers ? calibration.lasers->readback_offset_mm.value_or(0.0) : 0.0);
   options.readback_tolerance_mm = o.readback_tolerance_mm;
   options.fit_tilt = !o.no_tilt;
   options.fit_panel_offsets = !o.keep_panel_offsets;
@@ -199,7 +203,8 @@ void Run(const LasersOptions& o) {
 
   const std::vector<std::string> failures =
       PanelOffsetFailures(result, limits.max_panel_offset_error_mm);
-  const nlohmann::json json = ResultJson(result, o, limits.max_panel_offset_error_mm, failures);
+  const nlohmann::json json =
+      ResultJson(result, o, limits.max_panel_offset_error_mm, options.readback_offset_mm, failures);
   WriteText(o.out, "--out", json.dump(2) + "\n");
   if (!failures.empty()) {
     for (const std::string& failure : failures)
@@ -216,6 +221,8 @@ void Run(const LasersOptions& o) {
     lasers.normal = result.fit.normal;
     lasers.height_at_t0_mm = result.fit.height_at_t0_mm;
     lasers.speed_mm_s = result.fit.speed_mm_s;
+    lasers.offsets_mm = result.fit.offset_mm;
+    if (result.readback) lasers.readback_offset_mm = result.readback->offset_mm;
     updated.lasers = lasers;
     // The panels are built from the mirrors in order.
     for (size_t i = 0; i < result.panel_offsets.size(); ++i)
@@ -280,8 +287,8 @@ void AddCalibrateLasersCommand(CLI::App& app) {
                   "How far the panels reach beyond each mirror's outer edge and top, mm")
       ->capture_default_str();
   cmd->add_option("--readback-offset", options->readback_offset_mm,
-                  "Expected slide readback minus laser 0's height, mm")
-      ->capture_default_str();
+                  "Expected slide readback minus laser 0's height, mm (default: the "
+                  "calibration's lasers.readback_offset_mm, else 0)");
   cmd->add_option("--readback-tolerance", options->readback_tolerance_mm,
                   "Warn when the readback is further than this from the fitted line, mm")
       ->capture_default_str();
