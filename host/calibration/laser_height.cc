@@ -418,6 +418,8 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
                                        const LaserCabinet& cabinet,
                                        const LaserHeightOptions& options) {
   if (cabinet.laser_count < 1) throw LaserHeightError("laser count must be at least 1");
+  if (cabinet.panel_offset_mm.size() != cabinet.panels.size())
+    throw LaserHeightError("the cabinet needs one panel offset per panel");
   if (frames.empty()) throw LaserHeightError("the scan has no frames");
   LaserHeightResult result;
   LaserFit& fit = result.fit;
@@ -542,9 +544,7 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
   for (int p = 0; p < panels; ++p) {
     PanelOffset offset;
     offset.name = cabinet.panels[p].name;
-    offset.assumed_mm = p < static_cast<int>(cabinet.panel_offset_mm.size())
-                            ? cabinet.panel_offset_mm[p]
-                            : std::numeric_limits<double>::quiet_NaN();
+    offset.assumed_mm = cabinet.panel_offset_mm[p];
     offset.std_error_mm = joint.offset_std_mm[p];
     offset.inliers = panel_inliers[p];
     if (free_offset[p]) offset.measured_mm = offset.assumed_mm + joint.delta[p];
