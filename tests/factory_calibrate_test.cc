@@ -60,6 +60,15 @@ class FactoryCalibrateTest : public ::testing::Test {
     }
   }
 
+  // The daemon rendering the calibration scene with `changes` merged in.
+  void StartDaemonWithCalibrationScene(const json& changes) {
+    json scene = json::parse(ReadFile(kSource / "boards/virtual/scenes/calibration.json"));
+    scene.merge_patch(changes);
+    const fs::path scene_file = dir_ / "scene.json";
+    std::ofstream(scene_file) << scene.dump(2);
+    StartDaemon(scene_file);
+  }
+
   void StopDaemon() {
     if (!daemon_) return;
     daemon_->Signal(SIGTERM);
@@ -131,11 +140,7 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
 
 TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {
   // The left panel stands 9 mm behind its mirror; the board says 6 (limit ±1 mm).
-  json scene = json::parse(ReadFile(kSource / "boards/virtual/scenes/calibration.json"));
-  scene["panels"]["left_offset_mm"] = 9.0;
-  const fs::path scene_file = dir_ / "moved-panel.json";
-  std::ofstream(scene_file) << scene.dump(2);
-  StartDaemon(scene_file);
+  StartDaemonWithCalibrationScene({{"panels", {{"left_offset_mm", 9.0}}}});
 
   const Result run = FactoryCalibrate(dir_ / "out");
   EXPECT_EQ(run.exit_code, 1) << run.out;
@@ -149,11 +154,7 @@ TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {
 
 TEST_F(FactoryCalibrateTest, TargetOutOfPlaceFailsAndUploadsNothing) {
   // The target turned by 3°: the calibration must refuse, not store a wrong result.
-  json scene = json::parse(ReadFile(kSource / "boards/virtual/scenes/calibration.json"));
-  scene["target"]["yaw_deg"] = 3.0;
-  const fs::path scene_file = dir_ / "turned-target.json";
-  std::ofstream(scene_file) << scene.dump(2);
-  StartDaemon(scene_file);
+  StartDaemonWithCalibrationScene({{"target", {{"yaw_deg", 3.0}}}});
 
   const Result run = FactoryCalibrate(dir_ / "out");
   EXPECT_EQ(run.exit_code, 1) << run.out;
