@@ -22,16 +22,8 @@ using Result = test_support::CommandResult;
 
 // mirrorscan with `arguments`; stdout and stderr together in .out.
 Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommand(
-      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1", "/dev/null");
-}
-
-fs::path TempDir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("mirrorscan_calibrate_cli_test_" + name + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
+                                        arguments);
 }
 
 nlohmann::json ReadJson(const fs::path& file) {
@@ -42,7 +34,7 @@ nlohmann::json ReadJson(const fs::path& file) {
 const fs::path kSamples = "/usr/share/doc/opencv-doc/examples/data";
 
 TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
-  const fs::path dir = TempDir("intrinsics");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_calibrate_cli_test_intrinsics");
   std::vector<fs::path> images;
   std::string arguments;
   for (int i : {1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14}) {
@@ -71,7 +63,7 @@ TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
 }
 
 TEST(CalibrateCli, IntrinsicsBadInputIsOneClearLine) {
-  const fs::path dir = TempDir("intrinsics_bad");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_calibrate_cli_test_intrinsics_bad");
   const fs::path blank = dir / "blank.png";
   cv::imwrite(blank.string(), cv::Mat(480, 640, CV_8U, cv::Scalar(128)));
   const std::string out = " --out " + (dir / "i.json").string();
@@ -91,7 +83,7 @@ TEST(CalibrateCli, IntrinsicsBadInputIsOneClearLine) {
 }
 
 TEST(CalibrateCli, LasersOfASimulatedScan) {
-  const fs::path dir = TempDir("lasers");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_calibrate_cli_test_lasers");
   // The mannequin with a fast slide, so that 15 frames (0.47 s) take the lasers past both
   // cameras' views of the panels.
   const std::string scene = (dir / "fast.json").string();

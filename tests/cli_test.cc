@@ -22,24 +22,16 @@ using Result = test_support::CommandResult;
 
 // mirrorscan with `arguments`; stdout and stderr together in .out.
 Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommand(
-      std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments + " 2>&1", "/dev/null");
+  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
+                                        arguments);
 }
 
 std::string Scene(const std::string& name) {
   return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
 }
 
-fs::path TempDir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("mirrorscan_cli_test_" + name + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
 TEST(CliTest, SimScanWritesACompletePeakArchive) {
-  const fs::path dir = TempDir("scan");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_scan");
   const Result r =
       RunMirrorscan("sim scan --scene " + Scene("cylinder") + " --out " + dir.string() +
                     " --frames 4 --peaks " + (dir / "scan.mscan").string());
@@ -63,7 +55,7 @@ TEST(CliTest, SimScanWritesACompletePeakArchive) {
 }
 
 TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
-  const fs::path dir = TempDir("peaks");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_peaks");
   ASSERT_EQ(RunMirrorscan("sim render --scene " + Scene("mannequin") + " --out " + dir.string() +
                           " --camera lower")
                 .exit_code,
@@ -96,7 +88,7 @@ TEST(CliTest, PeaksCsvIsWhatTheExtractorFinds) {
 }
 
 TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
-  const fs::path dir = TempDir("calibrate");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_calibrate");
   Result r = RunMirrorscan("sim render --no-lasers --scene " + Scene("calibration") + " --out " +
                            dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
@@ -145,7 +137,7 @@ TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
 }
 
 TEST(CliTest, BadInputGivesOneClearLineAndNonZeroExit) {
-  const fs::path dir = TempDir("bad");
+  const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_bad");
   std::ofstream(dir / "bad.json") << R"({"lasers": {"count": 9}})";
   Result r =
       RunMirrorscan("sim render --scene " + (dir / "bad.json").string() + " --out " + dir.string());

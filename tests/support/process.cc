@@ -41,6 +41,18 @@ int FreeLoopbackPort() {
   return ntohs(addr.sin_port);
 }
 
+std::filesystem::path FreshTempDir(const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+CommandResult RunCommandMerged(const std::string& command) {
+  return RunCommand(command + " 2>&1", "/dev/null");
+}
+
 CommandResult RunCommand(const std::string& command, const std::filesystem::path& err_file) {
   const std::string line = "(" + command + ") 2>" + err_file.string();
   FILE* pipe = ::popen(line.c_str(), "r");

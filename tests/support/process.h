@@ -20,6 +20,10 @@ std::string ReadFile(const std::filesystem::path& path);
 // A loopback TCP port nobody listens on right now.
 int FreeLoopbackPort();
 
+// An empty directory <name>_<pid> under the system's temporary directory (emptied first
+// if a previous run left it).
+std::filesystem::path FreshTempDir(const std::string& name);
+
 struct CommandResult {
   int exit_code = -1;  // 128 + signal when killed
   std::string out;     // stdout
@@ -28,6 +32,8 @@ struct CommandResult {
 
 // Runs `command` with /bin/sh; stderr goes through `err_file` (a scratch path).
 CommandResult RunCommand(const std::string& command, const std::filesystem::path& err_file);
+// Runs `command` with its stdout and stderr together in .out.
+CommandResult RunCommandMerged(const std::string& command);
 
 struct ChildOptions {
   std::vector<std::pair<std::string, std::string>> env;  // set in the child
