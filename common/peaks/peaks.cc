@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 
@@ -251,6 +252,18 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
 }
 
 std::string PeakExtractor::SimdTarget() { return peaks_internal::SimdTargetName(); }
+
+bool peaks_internal::CandidateSearch::NeverHalfHeight(int u, int r, int upper, int lower) const {
+  const int c = At(u, r);
+  if (std::abs(upper - lower) < StepDn(threshold) || At(u, r + 1) == c) return false;
+  int low_up = c, low_dn = c;
+  for (int k = 1; k <= window; ++k) {
+    low_up = std::min(low_up, At(u, r - k));
+    low_dn = std::min(low_dn, At(u, r + k));
+  }
+  const int bg = std::min(upper, lower);
+  return 2 * low_up > c + bg || 2 * low_dn > c + bg;
+}
 
 namespace {
 
