@@ -133,6 +133,7 @@ class PeakExtractor {
   std::vector<float> rows_;     // Unsmoothed rows, while smoothing along the stripe.
   std::vector<int32_t> links_;  // Each peak's neighbours along its stripe.
   std::vector<uint8_t> dropped_;
+  std::vector<uint8_t> extent_;  // How far each peak's stripe goes on, per side.
 };
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
