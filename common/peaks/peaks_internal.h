@@ -43,7 +43,8 @@ struct CandidateSearch {
   // flank means that prove a step (StepDn: the refinement then takes the lower flank as
   // the background), and every row on one side, out to the window, with 2 I > c + bg
   // (bg = the lower rounded flank mean, at least the refinement's background; the
-  // refinement needs a row with 2 I <= c + background there). Out of line: rarely reached.
+  // refinement needs a row with 2 I <= c + background there). Out of line: only
+  // candidates reach it.
   bool NeverHalfHeight(int u, int r, int upper, int lower) const;
   // Rounded flank means this far apart (2 |A_l - A_r| >= threshold + 3) prove that the
   // exact means differ by more than threshold / 2: each rounded mean is 0 ... 1 above the
