@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
 #include <stdexcept>
 
@@ -252,6 +253,18 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
 
 std::string PeakExtractor::SimdTarget() { return peaks_internal::SimdTargetName(); }
 
+bool peaks_internal::CandidateSearch::NeverHalfHeight(int u, int r, int upper, int lower) const {
+  const int c = At(u, r);
+  if (std::abs(upper - lower) < StepDn(threshold) || At(u, r + 1) == c) return false;
+  int low_up = c, low_dn = c;
+  for (int k = 1; k <= window; ++k) {
+    low_up = std::min(low_up, At(u, r - k));
+    low_dn = std::min(low_dn, At(u, r + k));
+  }
+  const int bg = std::min(upper, lower);
+  return 2 * low_up > c + bg || 2 * low_dn > c + bg;
+}
+
 namespace {
 
 // Half-maximum crossings left and right of the top [first, last], linearly interpolated;
@@ -443,7 +456,8 @@ constexpr QuadraticKernels kQuadraticKernels;
 // stage 2 only, so the result does not depend on the order peaks are visited in.
 void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* start,
                      std::vector<float>* rows, std::vector<int32_t>* links,
-                     std::vector<uint8_t>* dropped, std::vector<Peak>* peaks) {
+                     std::vector<uint8_t>* dropped, std::vector<uint8_t>* extent,
+                     std::vector<Peak>* peaks) {
   const int half_width = params.along_stripe_half_width;
   const float end_ratio = params.stripe_end_min_ratio;
   if (half_width < 2 && !params.drop_isolated_peaks && !(end_ratio > 0)) return;
@@ -513,32 +527,46 @@ void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* star
   for (size_t i = 0; i < 2 * count; ++i)
     if (link[i] >= 0 && (*dropped)[link[i]]) link[i] = -1;
   if (half_width >= 2) {
-    // pair[k] = the linked peaks in columns u - k and u + k; pair[0] = the peak itself.
-    int32_t pair[kMaxAlongStripeHalfWidth + 1][2];
     auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
+    // extent[2i] / extent[2i + 1]: how many columns (up to the half width) the stripe goes on
+    // left / right of peak i with each new row continuing its side's local trend (a step
+    // or kink ends it): one more than the neighbour's extent, unless the neighbour's
+    // neighbour is missing or off the trend. Computed once per peak, not again in every
+    // fit that passes through it; left links point to earlier peaks, right links to later
+    // ones, so each neighbour's extent is known first.
+    extent->resize(2 * count);
+    uint8_t* r = extent->data();
+    const auto hw = static_cast<uint8_t>(half_width);
+    for (size_t i = 0; i < count; ++i) {
+      const int32_t l1 = link[2 * i];
+      const int32_t l2 = l1 < 0 ? -1 : link[2 * l1];
+      r[2 * i] = l1 < 0 ? 0
+                 : l2 < 0 || bends(l2, l1, static_cast<int>(i))
+                     ? 1
+                     : std::min<uint8_t>(hw, r[2 * l1] + 1);
+    }
+    for (size_t i = count; i-- > 0;) {
+      const int32_t r1 = link[2 * i + 1];
+      const int32_t r2 = r1 < 0 ? -1 : link[2 * r1 + 1];
+      r[2 * i + 1] = r1 < 0 ? 0
+                     : r2 < 0 || bends(r2, r1, static_cast<int>(i))
+                         ? 1
+                         : std::min<uint8_t>(hw, r[2 * r1 + 1] + 1);
+    }
     for (size_t i = 0; i < count; ++i) {
       if ((*dropped)[i]) continue;
-      pair[0][0] = pair[0][1] = static_cast<int32_t>(i);
-      int m = 0;
-      for (int k = 1; k <= half_width; ++k) {
-        const int32_t left = link[2 * pair[k - 1][0]];
-        const int32_t right = link[2 * pair[k - 1][1] + 1];
-        if (left < 0 || right < 0) break;
-        // Each new sample must continue its side's local trend (a step or kink ends the
-        // fit).
-        if (k == 1 ? bends(left, static_cast<int>(i), right)
-                   : bends(left, pair[k - 1][0], pair[k - 2][0]) ||
-                         bends(right, pair[k - 1][1], pair[k - 2][1])) {
-          break;
-        }
-        pair[k][0] = left;
-        pair[k][1] = right;
-        m = k;
-      }
-      if (m < 2) continue;  // A quadratic through 3 samples is the row itself.
+      int32_t left = link[2 * i], right = link[2 * i + 1];
+      // The fit uses pairs u -+ k while both sides extend to k, and not at all if the centre
+      // bends (the two columns beside it are off its trend).
+      const int m = std::min(r[2 * i], r[2 * i + 1]);
+      if (m < 2 || bends(left, static_cast<int>(i), right)) continue;  // 3 samples: the row.
       const float* w = kQuadraticKernels.w[m];
       float row = w[0] * v[i];
-      for (int k = 1; k <= m; ++k) row += w[k] * (v[pair[k][0]] + v[pair[k][1]]);
+      for (int k = 1; k <= m; ++k) {
+        row += w[k] * (v[left] + v[right]);
+        left = link[2 * left];
+        right = link[2 * right + 1];
+      }
       p[i].v = row;
     }
   }
@@ -659,7 +687,8 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   }
   column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
-  AlongStripePass(params, ncols, roi.x0, column_start_.data(), &rows_, &links_, &dropped_, out);
+  AlongStripePass(params, ncols, roi.x0, column_start_.data(), &rows_, &links_, &dropped_, &extent_,
+                  out);
 }
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {

@@ -32,9 +32,24 @@ struct CandidateSearch {
   bool IsCandidate(int u, int r) const {
     const int c = At(u, r);
     if (!(At(u, r - 1) < c && At(u, r + 1) <= c)) return false;
-    const int bg = std::min(Mean4(u, r - window), Mean4(u, r + window - 3));
-    return c - bg >= threshold;
+    const int upper = Mean4(u, r - window), lower = Mean4(u, r + window - 3);
+    if (c - std::min(upper, lower) < threshold) return false;
+    return !NeverHalfHeight(u, r, upper, lower);
   }
+  // The step rule. Most candidates (two thirds on rendered frames) are local maxima on the
+  // bright side of an ambient step, which the refinement rejects because the column never
+  // falls to half the peak's height above the background on that side within the window.
+  // True where that is certain: a single top (a plateau moves the refinement's window),
+  // flank means that prove a step (StepDn: the refinement then takes the lower flank as
+  // the background), and every row on one side, out to the window, with 2 I > c + bg
+  // (bg = the lower rounded flank mean, at least the refinement's background; the
+  // refinement needs a row with 2 I <= c + background there). Out of line: only
+  // candidates reach it.
+  bool NeverHalfHeight(int u, int r, int upper, int lower) const;
+  // Rounded flank means this far apart (2 |A_l - A_r| >= threshold + 3) prove that the
+  // exact means differ by more than threshold / 2: each rounded mean is 0 ... 1 above the
+  // exact one.
+  static int StepDn(int threshold) { return (threshold + 4) / 2; }
 };
 
 // Appends each row's candidates to `row` (ascending u), then calls on_row(ctx), which

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/peaks/peaks_internal.h"
 #include "common/peaks/peaks_synth.h"
 
 namespace mirrorscan {
@@ -272,6 +273,73 @@ TEST(PeakRobustness, GlintsGapsAndAmbientGradient) {
     const bool in_gap = p.u >= 200 && p.u < 420 && std::abs(p.v - scene.stripes[1].Centre(p.u)) < 3;
     EXPECT_FALSE(in_gap) << p.u << " " << p.v;
   }
+}
+
+// On rendered frames two thirds of the candidates are local maxima on the bright side of
+// an ambient step, and the candidate rule drops those the refinement is certain to reject
+// (CandidateSearch::NeverHalfHeight). Checked here against the refinement's own arithmetic
+// (exact flank means, a linear background where they agree within threshold / 2, the
+// half-maximum walk out to the window) on noisy frames with steps beside and under the
+// lines; and the lines are still found.
+TEST(PeakRobustness, StepRuleDropsOnlyWhatRefinementRejects) {
+  std::mt19937 rng(21);
+  Scene scene;
+  scene.noise_sigma = 3;
+  scene.stripes = synth::RandomStripes(8, scene.height, 40, 200, &rng);
+  Frame f = synth::Render(scene, 21);
+  // Each stripe gets an edge wandering from 8 px above it to 8 px below, 20 .. 50 DN up
+  // for even stripes, down for odd ones (the frame stays within 0 .. 255 between them).
+  for (size_t k = 0; k < scene.stripes.size(); ++k) {
+    const int step = (k % 2 == 0 ? 1 : -1) * (20 + static_cast<int>(10 * k) % 31);
+    for (int u = 0; u < f.width; ++u) {
+      const double edge =
+          scene.stripes[k].Centre(u) + 8 * std::sin(u / 40.0 + static_cast<double>(k));
+      for (int v = std::max(0, static_cast<int>(std::ceil(edge))); v < f.height; ++v) {
+        uint8_t& px = f.pixels[static_cast<size_t>(v) * f.width + u];
+        px = static_cast<uint8_t>(std::clamp(px + step, 0, 255));
+      }
+    }
+  }
+  PeakParams params;
+  params.threshold_dn = 18;
+  const peaks_internal::CandidateSearch search{
+      f.pixels.data(), f.width, 0, f.width, 0, f.height, params.window, params.threshold_dn};
+  int candidates = 0, dropped = 0;
+  for (int u = 0; u < f.width; ++u) {
+    for (int r = 1; r <= f.height - 2; ++r) {
+      const int c = search.At(u, r);
+      if (!(search.At(u, r - 1) < c && search.At(u, r + 1) <= c)) continue;
+      const int upper = search.Mean4(u, r - params.window);
+      const int lower = search.Mean4(u, r + params.window - 3);
+      if (c - std::min(upper, lower) < params.threshold_dn) continue;
+      ++candidates;
+      if (!search.NeverHalfHeight(u, r, upper, lower)) continue;
+      ++dropped;
+      float left = 0, right = 0;
+      for (int i = 0; i < 4; ++i) {
+        left += 0.25f * static_cast<float>(search.At(u, r - params.window + i));
+        right += 0.25f * static_cast<float>(search.At(u, r + params.window - 3 + i));
+      }
+      ASSERT_GT(std::abs(left - right), 0.5f * params.threshold_dn) << u << " " << r;
+      const float base = std::min(left, right);
+      const float half = 0.5f * (static_cast<float>(c) - base);
+      bool crossing_up = false, crossing_down = false;
+      for (int i = 1; i <= params.window; ++i) {
+        crossing_up = crossing_up || (r - i >= 0 && search.At(u, r - i) - base <= half);
+        crossing_down = crossing_down || (r + i < f.height && search.At(u, r + i) - base <= half);
+      }
+      ASSERT_FALSE(crossing_up && crossing_down) << u << " " << r;
+    }
+  }
+  Score s;
+  const auto peaks = ExtractPeaks(f.view(), params);
+  Evaluate(f, peaks, &s);
+  std::printf("steps beside lines: %d of %d candidates dropped; recall %.2f%%, false %d\n", dropped,
+              candidates, 100 * s.Recall(), s.false_peaks);
+  EXPECT_GT(dropped, candidates / 4);
+  EXPECT_GE(s.Recall(), 0.99);
+  EXPECT_LE(s.false_peaks, 10);
+  EXPECT_EQ(peaks.size(), ExtractPeaksScalar(f.view(), params).size());
 }
 
 TEST(PeakRobustness, MaxPeaksPerColumnKeepsTheStrongest) {
