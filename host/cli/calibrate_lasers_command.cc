@@ -67,12 +67,16 @@ std::vector<Camera> CamerasOf(const ScanArchive& archive, const Calibration& cal
 }
 
 // A panel measured further from the calibration's offset than the limit stands out of
-// place: one line each, saying what to do.
+// place; one not measured passes.
+bool PanelOffsetOk(const PanelOffset& offset, double limit_mm) {
+  return !offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm;
+}
+
+// One line per panel out of place, saying what to do.
 std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& r, double limit_mm) {
   std::vector<std::string> failures;
   for (const PanelOffset& offset : r.panel_offsets) {
-    if (!offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm)
-      continue;
+    if (PanelOffsetOk(offset, limit_mm)) continue;
     failures.push_back(Format(
         "%s: measured %.2f mm (± %.3f) behind its mirror, the calibration says %.2f mm "
         "(limit ± %g mm): check how the panel is mounted; if it is meant to stand there, set "
@@ -88,15 +92,13 @@ nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, do
   const LaserFit& fit = r.fit;
   nlohmann::json panel_offsets = nlohmann::json::array();
   for (const PanelOffset& offset : r.panel_offsets) {
-    panel_offsets.push_back(
-        {{"name", offset.name},
-         {"assumed_mm", offset.assumed_mm},
-         {"measured_mm", NumberOrNull(offset.measured_mm)},
-         {"std_error_mm", NumberOrNull(offset.std_error_mm)},
-         {"inliers", offset.inliers},
-         {"limit_mm", limit_mm},
-         {"ok",
-          !offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm}});
+    panel_offsets.push_back({{"name", offset.name},
+                             {"assumed_mm", offset.assumed_mm},
+                             {"measured_mm", NumberOrNull(offset.measured_mm)},
+                             {"std_error_mm", NumberOrNull(offset.std_error_mm)},
+                             {"inliers", offset.inliers},
+                             {"limit_mm", limit_mm},
+                             {"ok", PanelOffsetOk(offset, limit_mm)}});
   }
   nlohmann::json frames = nlohmann::json::array();
   for (const FrameLaserHeights& f : r.frames) {
@@ -227,7 +229,10 @@ void Run(const LasersOptions& o) {
     // The panels are built from the mirrors in order.
     for (size_t i = 0; i < result.panel_offsets.size(); ++i)
       updated.mirrors.at(i).panel_offset_mm = result.panel_offsets[i].used_mm();
-    WriteText(o.calibration_out, "--calibration-out", updated.ToJson().dump(2) + "\n");
+    // Validated as any reader will (e.g. lasers out of order), before it is written.
+    const nlohmann::json updated_json = updated.ToJson();
+    Calibration::Parse(updated_json, o.calibration_out);
+    WriteText(o.calibration_out, "--calibration-out", updated_json.dump(2) + "\n");
   }
   if (o.json) {
     std::printf("%s\n", json.dump(2).c_str());
