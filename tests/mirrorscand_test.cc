@@ -265,6 +265,22 @@ TEST_F(MirrorscandTest, NotifiesSystemdReadyWatchdogAndStopping) {
   EXPECT_EQ(count("STOPPING=1"), 1);
 }
 
+// A stored calibration that no longer validates does not keep the device from starting
+// (it could then never be given a new one): it is set aside, the log says why.
+TEST_F(MirrorscandTest, InvalidStoredCalibrationIsSetAsideAndTheDeviceStarts) {
+  fs::create_directories(data_);
+  std::ofstream(data_ / "calibration.json") << R"({"schema": "mirrorscan.calibration"})";
+  Daemon daemon(Args(WriteBoard(true)), dir_ / "log");
+  ASSERT_TRUE(daemon.WaitLog("ready")) << daemon.Log();
+  EXPECT_NE(daemon.Log().find("calibration.json.invalid); the device runs uncalibrated"),
+            std::string::npos)
+      << daemon.Log();
+  EXPECT_FALSE(fs::exists(data_ / "calibration.json"));
+  EXPECT_TRUE(fs::exists(data_ / "calibration.json.invalid"));
+  daemon.Signal(SIGTERM);
+  EXPECT_EQ(daemon.Wait(), 0) << daemon.Log();
+}
+
 TEST_F(MirrorscandTest, BadInputGetsOneLineAndItsExitCode) {
   Daemon no_args({"--board"}, dir_ / "log1");
   EXPECT_EQ(no_args.Wait(), 2);

@@ -54,6 +54,7 @@ void to_json(nlohmann::json& j, const DeviceStatus& v) {
        {"board", v.board},
        {"firmware_version", v.firmware_version},
        {"calibration_sha256", v.calibration_sha256},
+       {"calibration_problem", v.calibration_problem},
        {"scan", v.scan},
        {"disk", v.disk}};
 }
@@ -62,6 +63,7 @@ void from_json(const nlohmann::json& j, DeviceStatus& v) {
   v.board = j.at("board").get<std::string>();
   v.firmware_version = j.value("firmware_version", "");
   v.calibration_sha256 = j.value("calibration_sha256", "");
+  v.calibration_problem = j.value("calibration_problem", "");
   v.scan = j.at("scan").get<ScanProgress>();
   v.disk = j.value("disk", DiskUse{});
 }

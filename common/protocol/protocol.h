@@ -53,6 +53,8 @@ struct DeviceStatus {
   std::string board;
   std::string firmware_version;
   std::string calibration_sha256;  // empty: no calibration stored
+  // Why the calibration found at start was set aside (empty: none was).
+  std::string calibration_problem;
   ScanProgress scan;
   DiskUse disk;
 };

@@ -26,6 +26,7 @@ TEST(ProtocolJsonTest, StatusRoundTrips) {
   status.board = "virtual";
   status.firmware_version = "0.1.0";
   status.calibration_sha256 = std::string(64, 'a');
+  status.calibration_problem = "calibration.json: lasers: missing";
   status.scan.state = "sweeping";
   status.scan.scan_id = "20261124T035501Z-0001";
   status.scan.progress = 0.25;
@@ -35,6 +36,7 @@ TEST(ProtocolJsonTest, StatusRoundTrips) {
   EXPECT_EQ(j.at("api_version"), kApiVersion);
   const auto back = j.get<DeviceStatus>();
   EXPECT_EQ(back.board, "virtual");
+  EXPECT_EQ(back.calibration_problem, status.calibration_problem);
   EXPECT_EQ(back.scan.state, "sweeping");
   EXPECT_EQ(back.scan.scan_id, status.scan.scan_id);
   EXPECT_DOUBLE_EQ(back.scan.progress, 0.25);

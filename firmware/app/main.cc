@@ -2,8 +2,8 @@
 // the scan store, runs the sequencer and its safety supervisor until SIGTERM/SIGINT.
 //
 // Exit codes: 0 stopped by a signal, or --exit-after-scan and the scan completed;
-// 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line,
-// board.json or stored calibration.json; 3 a device or the device API failed to start; 4 the data
+// 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line or
+// board.json; 3 a device or the device API failed to start; 4 the data
 // directory cannot be used; 5 an internal error (the lasers were switched off first).
 
 #include <signal.h>
@@ -250,6 +250,9 @@ int Run(const Args& args, const sigset_t& signals) {
   std::unique_ptr<service::ApiServer> api;
   try {
     calibration = std::make_unique<service::CalibrationStore>(args.data_dir / "calibration.json");
+    if (const std::string problem = calibration->problem(); !problem.empty()) {
+      spdlog::error("calibration: {}; the device runs uncalibrated until one is uploaded", problem);
+    }
     service::ApiServerOptions api_options;
     api_options.firmware_version = MIRRORSCAN_VERSION;
     api = std::make_unique<service::ApiServer>(*store, *sequencer, config, *calibration,

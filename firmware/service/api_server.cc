@@ -333,6 +333,7 @@ void ApiServer::HandleStatus(const Request& req, Response& res) {
   status.board = board_.board;
   status.firmware_version = options_.firmware_version;
   status.calibration_sha256 = calibration_.Sha256();
+  status.calibration_problem = calibration_.problem();
   status.scan = ToProgress(control_.Status());
   std::error_code ec;
   const fs::space_info space = fs::space(store_.dir(), ec);

@@ -482,6 +482,7 @@ TEST_F(ApiServerTest, CalibrationIsValidatedThenStored) {
   EXPECT_EQ(get->get_header_value("X-Mirrorscan-Calibration-SHA256"), Sha256Of(text));
   auto status = Client().Get("/api/v1/status");
   EXPECT_EQ(json::parse(status->body).at("calibration_sha256"), Sha256Of(text));
+  EXPECT_EQ(json::parse(status->body).at("calibration_problem"), "");
 }
 
 TEST_F(ApiServerTest, CaptureReturnsAGrayImage) {

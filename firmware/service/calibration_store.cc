@@ -76,7 +76,15 @@ CalibrationStore::CalibrationStore(fs::path path) : path_(std::move(path)) {
   if (!in) throw std::runtime_error(path_.string() + ": cannot open for reading");
   std::ostringstream text;
   text << in.rdbuf();
-  ValidateCalibration(JsonReader::ParseText(text.str(), path_.string()), path_.string());
+  try {
+    ValidateCalibration(JsonReader::ParseText(text.str(), path_.string()), path_.string());
+  } catch (const ConfigError& e) {
+    const fs::path aside = path_.string() + ".invalid";
+    in.close();
+    if (::rename(path_.c_str(), aside.c_str()) != 0) IoFail(path_, "cannot set it aside");
+    problem_ = std::string(e.what()) + " (set aside as " + aside.filename().string() + ")";
+    return;
+  }
   text_ = text.str();
   sha256_ = HexSha256(*text_);
 }
@@ -91,6 +99,11 @@ std::string CalibrationStore::Sha256() const {
   return sha256_;
 }
 
+std::string CalibrationStore::problem() const {
+  std::lock_guard lock(mutex_);
+  return problem_;
+}
+
 std::string CalibrationStore::Put(const std::string& text, const std::string& source) {
   ValidateCalibration(JsonReader::ParseText(text, source), source);
   const std::string sha = HexSha256(text);
@@ -98,6 +111,7 @@ std::string CalibrationStore::Put(const std::string& text, const std::string& so
   WriteFileAtomically(path_, text);
   text_ = text;
   sha256_ = sha;
+  problem_.clear();
   return sha;
 }
 

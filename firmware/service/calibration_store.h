@@ -19,7 +19,9 @@ void ValidateCalibration(const nlohmann::json& calibration, const std::string& s
 class CalibrationStore {
  public:
   // `path` is <data-dir>/calibration.json; it need not exist yet. A stored file that no
-  // longer validates is reported by Load as a ConfigError.
+  // longer validates (say, written by a newer schema) is renamed to
+  // calibration.json.invalid and problem() says why: the device then runs uncalibrated,
+  // so a new calibration can still be uploaded, and the old file is kept for a person.
   explicit CalibrationStore(std::filesystem::path path);
 
   // The stored text, nullopt when none is stored.
@@ -32,12 +34,16 @@ class CalibrationStore {
   std::string Put(const std::string& text, const std::string& source);
 
   const std::filesystem::path& path() const { return path_; }
+  // Why the file found at start was set aside; empty when it was valid or absent, and
+  // once a new calibration is stored.
+  std::string problem() const;
 
  private:
   std::filesystem::path path_;
   mutable std::mutex mutex_;
   std::optional<std::string> text_;
   std::string sha256_;
+  std::string problem_;
 };
 
 }  // namespace mirrorscan::service

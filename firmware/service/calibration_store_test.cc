@@ -74,5 +74,25 @@ TEST_F(CalibrationStoreTest, InvalidUploadNamesTheKeyAndKeepsTheOldFile) {
   EXPECT_EQ(store.Get(), text);
 }
 
+// A stored file that no longer validates does not stop the device: it is set aside
+// (kept for a person to look at), the device is uncalibrated and takes a new upload.
+TEST_F(CalibrationStoreTest, InvalidStoredFileIsSetAsideAndANewOneCanBeUploaded) {
+  const fs::path path = dir_ / "calibration.json";
+  const std::string damaged = ValidCalibrationText().substr(0, 500);
+  std::ofstream(path) << damaged;
+  CalibrationStore store(path);
+  EXPECT_FALSE(store.Get().has_value());
+  EXPECT_EQ(store.Sha256(), "");
+  EXPECT_EQ(store.problem().rfind(path.string() + ": ", 0), 0u) << store.problem();
+  EXPECT_NE(store.problem().find("(set aside as calibration.json.invalid)"), std::string::npos)
+      << store.problem();
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_EQ(ReadFile(path.string() + ".invalid"), damaged);
+  const std::string text = ValidCalibrationText();
+  store.Put(text, "upload");
+  EXPECT_EQ(store.problem(), "");
+  EXPECT_EQ(CalibrationStore(path).Get(), text);
+}
+
 }  // namespace
 }  // namespace mirrorscan::service

@@ -131,6 +131,8 @@ void Status(const DeviceOptions& o) {
   std::printf("\ncalibration %s\n", s.calibration_sha256.empty()
                                         ? "none stored"
                                         : s.calibration_sha256.substr(0, 16).c_str());
+  if (!s.calibration_problem.empty())
+    std::printf("           the stored one was set aside: %s\n", s.calibration_problem.c_str());
   std::printf("disk       %s free of %s; scans use %s\n", Megabytes(s.disk.free_bytes).c_str(),
               Megabytes(s.disk.total_bytes).c_str(), Megabytes(s.disk.scans_bytes).c_str());
 }
