@@ -175,7 +175,10 @@ TEST(CalibrationTest, ErrorsNameFileAndKey) {
 // Random mutations of a valid file: every outcome is a parsed calibration or a
 // ConfigError, never a crash or another exception.
 TEST(CalibrationTest, MutatedJsonNeverCrashes) {
-  const std::string text = Example().ToJson().dump();
+  Calibration example = Example();  // with every optional key, so they are mutated too
+  example.lasers->offsets_mm = {0.0, 200.3, 399.6};
+  example.lasers->readback_offset_mm = 50.0;
+  const std::string text = example.ToJson().dump();
   std::mt19937 rng(7);
   const std::vector<nlohmann::json> replacements = {
       nullptr, 0,         -1,   1e308,       "x", nlohmann::json::array(), nlohmann::json::object(),
