@@ -54,14 +54,9 @@ std::unique_ptr<hal::Camera> MakeCamera(const BoardConfig& config, const BoardCa
   }
   // The scene sees the true slide (the simulation's state, not the Modbus readback) where
   // it was at the frame's exposure: the camera thread renders later, by up to a frame
-  // period when it runs late, and the slide has moved on by then. The model moves at its
-  // set speed until the goal.
+  // period when it runs late, and the slide has moved on by then.
   const auto slide_at = [sim](int64_t exposure_ns) {
-    const virtual_cabinet::DriveModelState state = sim->State().model;
-    if (!state.moving || exposure_ns >= state.time_ns) return state.position_mm;
-    const double direction = state.goal_mm >= state.position_mm ? 1.0 : -1.0;
-    return state.position_mm -
-           direction * state.speed_mm_s * static_cast<double>(state.time_ns - exposure_ns) * 1e-9;
+    return sim->State().model.PositionAt(exposure_ns);
   };
   return devices.cabinet->MakeCamera(camera.scene_camera, slide_at, [lasers] {
     return std::any_of(lasers.begin(), lasers.end(), [](const auto& line) {

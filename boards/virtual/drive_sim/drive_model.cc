@@ -41,6 +41,17 @@ void DriveModel::Fault(int code) {
 void DriveModel::MoveTo(double goal_mm) {
   state_.goal_mm = goal_mm;
   state_.moving = goal_mm != state_.position_mm;
+  state_.move_start_ns = state_.time_ns;
+  state_.move_start_mm = state_.position_mm;
+}
+
+double DriveModelState::PositionAt(int64_t time) const {
+  if (!moving || time >= time_ns) return position_mm;
+  if (time <= move_start_ns) return move_start_mm;
+  // Constant speed since the move began: on the line from its start to now.
+  const double w =
+      static_cast<double>(time - move_start_ns) / static_cast<double>(time_ns - move_start_ns);
+  return move_start_mm + w * (position_mm - move_start_mm);
 }
 
 void DriveModel::SetEnabled(bool on, int64_t now_ns) {

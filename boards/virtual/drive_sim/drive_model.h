@@ -29,6 +29,14 @@ struct DriveModelState {
   bool moving = false;
   bool fault = false;
   int fault_code = 0;
+  // When and where the current (or last) move began.
+  int64_t move_start_ns = 0;
+  double move_start_mm = 0.0;
+
+  // Where the slide was at `time` (at most time_ns): at rest at move_start_mm before the
+  // current move began, then at its constant speed. A virtual camera renders a frame after
+  // its exposure and asks this for the exposure time.
+  double PositionAt(int64_t time) const;
 };
 
 // A slide without acceleration: it moves at the set speed from the command until the

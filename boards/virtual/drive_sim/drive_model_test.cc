@@ -55,6 +55,30 @@ TEST(DriveModelTest, MovesAtTheSetSpeedAndStopsAtTheTarget) {
   EXPECT_FALSE(model.state().moving);
 }
 
+// Where the slide was at an earlier time: at rest before the move began, then on its way.
+TEST(DriveModelTest, PositionAtAnEarlierTime) {
+  int64_t t = 0;
+  DriveModel model = Homed(t);
+  model.SetSpeed(200.0, t);
+  const int64_t start = t + kSecond / 2;
+  model.Advance(start);
+  model.Start(1000.0, start);
+  model.Advance(start + 2 * kSecond);
+  const DriveModelState& s = model.state();
+  EXPECT_NEAR(s.position_mm, 400.0, 1e-9);
+  EXPECT_EQ(s.PositionAt(start + 2 * kSecond), s.position_mm);
+  EXPECT_NEAR(s.PositionAt(start + kSecond), 200.0, 1e-9);
+  EXPECT_NEAR(s.PositionAt(start + kSecond / 100), 2.0, 1e-9);
+  EXPECT_EQ(s.PositionAt(start - kSecond / 10), 0.0);           // still at rest, not -20 mm
+  EXPECT_EQ(s.PositionAt(start + 3 * kSecond), s.position_mm);  // no later than now
+  // Homing back down runs at the homing speed (100 mm/s), which the line follows too.
+  const int64_t home = start + 2 * kSecond;
+  model.Home(home);
+  model.Advance(home + kSecond);
+  EXPECT_NEAR(model.state().position_mm, 300.0, 1e-9);
+  EXPECT_NEAR(model.state().PositionAt(home + kSecond / 2), 350.0, 1e-9);
+}
+
 TEST(DriveModelTest, RefusesBadCommandsWithAFault) {
   DriveModel cold(DriveModelConfig{}, 0);
   cold.Home(0);
