@@ -410,6 +410,19 @@ LaserCabinet LaserCabinetFromCalibration(const Calibration& calibration, const s
   return cabinet;
 }
 
+std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& result, double limit_mm) {
+  std::vector<std::string> failures;
+  for (const PanelOffset& offset : result.panel_offsets) {
+    if (offset.WithinLimit(limit_mm)) continue;
+    failures.push_back(Format(
+        "%s: measured %.2f mm (± %.3f) behind its mirror, the calibration says %.2f mm "
+        "(limit ± %g mm): check how the panel is mounted; if it is meant to stand there, set "
+        "calibration.panel_offset_mm in board.json and calibrate again",
+        offset.name.c_str(), offset.measured_mm, offset.std_error_mm, offset.assumed_mm, limit_mm));
+  }
+  return failures;
+}
+
 Eigen::Vector2d LaserFit::TiltDeg() const {
   return {std::atan2(-normal.y(), normal.z()) * kRadToDeg, std::asin(normal.x()) * kRadToDeg};
 }
@@ -503,10 +516,13 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
   const std::vector<bool> none(panels, false);
   JointFit joint =
       FitJointly(points, point_time, lasers, cabinet.nominal_spacing_mm, options, none);
+  std::vector<bool> camera_used(cabinet.cameras.size(), false);
+  for (const PanelPoint& p : points)
+    if (p.laser >= 0) camera_used[frames[p.frame].camera] = true;
   std::vector<Eigen::Vector3d> centres;
-  for (const PanelPoint& p : points) {
-    if (p.laser < 0) continue;
-    const Eigen::Vector3d centre = cabinet.cameras[frames[p.frame].camera].CenterInWorld();
+  for (size_t i = 0; i < cabinet.cameras.size(); ++i) {
+    if (!camera_used[i]) continue;
+    const Eigen::Vector3d centre = cabinet.cameras[i].CenterInWorld();
     if (std::none_of(centres.begin(), centres.end(), [&](const Eigen::Vector3d& c) {
           return (c - centre).norm() < kMinCameraBaselineMm;
         }))

@@ -154,6 +154,10 @@ struct PanelOffset {
   size_t inliers = 0;
   bool measured() const { return std::isfinite(measured_mm); }
   double used_mm() const { return measured() ? measured_mm : assumed_mm; }
+  // Measured no further than `limit_mm` from the assumed offset; one not measured passes.
+  bool WithinLimit(double limit_mm) const {
+    return !measured() || std::abs(measured_mm - assumed_mm) <= limit_mm;
+  }
 };
 
 struct LaserHeightResult {
@@ -171,6 +175,9 @@ struct LaserHeightResult {
   std::optional<ReadbackCheck> readback;
   std::vector<std::string> warnings;
 };
+
+// One line per panel measured out of place (beyond `limit_mm`), saying what to do.
+std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& result, double limit_mm);
 
 // Throws LaserHeightError when there is too little on the panels to fit.
 LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,

@@ -211,6 +211,13 @@ TEST(LaserHeight, PanelsOffTheirNominalPlaceAreMeasured) {
   }
   EXPECT_LT(errors.max, 0.1);
   ExpectAssignmentsTrue(result, sweep);
+  // Both are out of place by more than 1 mm; neither by more than 5.
+  const std::vector<std::string> failures = PanelOffsetFailures(result, 1.0);
+  ASSERT_EQ(failures.size(), 2u);
+  EXPECT_EQ(failures[0].rfind("left panel: measured 9.00 mm (± 0.00", 0), 0u) << failures[0];
+  EXPECT_NE(failures[1].find("the calibration says 6.00 mm (limit ± 1 mm)"), std::string::npos)
+      << failures[1];
+  EXPECT_TRUE(PanelOffsetFailures(result, 5.0).empty());
 
   LaserHeightOptions kept;
   kept.fit_panel_offsets = false;

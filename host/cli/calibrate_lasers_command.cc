@@ -33,12 +33,6 @@ struct LasersOptions {
   bool json = false;
 };
 
-std::string Format(const char* format, auto... args) {
-  char buffer[1024];
-  std::snprintf(buffer, sizeof(buffer), format, args...);
-  return buffer;
-}
-
 nlohmann::json NumberOrNull(double value) {
   return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(nullptr);
 }
@@ -66,26 +60,6 @@ std::vector<Camera> CamerasOf(const ScanArchive& archive, const Calibration& cal
   return cameras;
 }
 
-// A panel measured further from the calibration's offset than the limit stands out of
-// place; one not measured passes.
-bool PanelOffsetOk(const PanelOffset& offset, double limit_mm) {
-  return !offset.measured() || std::abs(offset.measured_mm - offset.assumed_mm) <= limit_mm;
-}
-
-// One line per panel out of place, saying what to do.
-std::vector<std::string> PanelOffsetFailures(const LaserHeightResult& r, double limit_mm) {
-  std::vector<std::string> failures;
-  for (const PanelOffset& offset : r.panel_offsets) {
-    if (PanelOffsetOk(offset, limit_mm)) continue;
-    failures.push_back(Format(
-        "%s: measured %.2f mm (± %.3f) behind its mirror, the calibration says %.2f mm "
-        "(limit ± %g mm): check how the panel is mounted; if it is meant to stand there, set "
-        "calibration.panel_offset_mm in board.json and calibrate again",
-        offset.name.c_str(), offset.measured_mm, offset.std_error_mm, offset.assumed_mm, limit_mm));
-  }
-  return failures;
-}
-
 nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, double limit_mm,
                           double expected_readback_offset_mm,
                           const std::vector<std::string>& failures) {
@@ -98,7 +72,7 @@ nlohmann::json ResultJson(const LaserHeightResult& r, const LasersOptions& o, do
                              {"std_error_mm", NumberOrNull(offset.std_error_mm)},
                              {"inliers", offset.inliers},
                              {"limit_mm", limit_mm},
-                             {"ok", PanelOffsetOk(offset, limit_mm)}});
+                             {"ok", offset.WithinLimit(limit_mm)}});
   }
   nlohmann::json frames = nlohmann::json::array();
   for (const FrameLaserHeights& f : r.frames) {
