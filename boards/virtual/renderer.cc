@@ -149,6 +149,7 @@ Renderer::Renderer(const Scene& scene) : scene_(scene) {
   for (const auto& mirror : scene_.mirrors) add(mirror.Mesh(), Material::kMirror);
   if (!scene_.subject.mesh.empty()) add(scene_.subject.mesh, Material::kSubject);
   if (scene_.target) add(scene_.target->Mesh(), Material::kTarget);
+  if (scene_.chessboard) add(scene_.chessboard->Mesh(), Material::kChessboard);
   tracer_.Commit();
   caches_.resize(scene_.cameras.size());
 }
@@ -242,6 +243,10 @@ double Renderer::Albedo(const RayHit& hit, double footprint_mm) const {
       const auto a = scene_.target->AlbedoArea(hit.point, footprint_mm);
       return a ? *a : 0.85;
     }
+    case Material::kChessboard: {
+      const auto a = scene_.chessboard->AlbedoArea(hit.point, footprint_mm);
+      return a ? *a : kChessboardWhiteAlbedo;
+    }
     default:
       return 0.0;
   }
@@ -299,6 +304,9 @@ void Renderer::BuildCache(int camera) const {
         const double facing = std::max(0.0, -s.hit.normal.dot(s.last_ray.direction));
         base.at<float>(v, u) = static_cast<float>(sensor.ambient_dn * albedo * s.transmission *
                                                   (0.35 + 0.65 * facing));
+        // Without laser power (a lens calibration's captures) no pixel is lit: skip the
+        // shadow rays, most of the cost of this pass.
+        if (scene_.lasers.power <= 0.0) continue;
         const double irradiance = LaserIrradiance(s.hit.point, s.hit.normal);
         if (irradiance <= 0.0) continue;
         const double gain =

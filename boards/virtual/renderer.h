@@ -30,7 +30,7 @@ const char* ViewName(View view);
 // Mirror indices (0 left, 1 right) in the order the camera ray meets them.
 std::vector<int> MirrorPath(View view);
 
-enum class Material : uint8_t { kNone, kFloor, kPanel, kMirror, kSubject, kTarget };
+enum class Material : uint8_t { kNone, kFloor, kPanel, kMirror, kSubject, kTarget, kChessboard };
 
 struct SurfaceSample {
   View view = View::kNone;

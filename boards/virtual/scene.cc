@@ -138,7 +138,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
                    const std::filesystem::path& base_dir) {
   const JsonReader root(json, file_name);
   root.AllowOnly({"cameras", "mirrors", "panels", "floor", "lasers", "sensor", "subject", "target",
-                  "frames", "seed"});
+                  "chessboard", "frames", "seed"});
   Scene scene;
 
   // Cameras.
@@ -255,6 +255,10 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
 
   if (json.contains("target") && !json["target"].is_null()) {
     scene.target.emplace(TargetConfig::Parse(JsonReader(json["target"], file_name, "target")));
+  }
+  if (json.contains("chessboard") && !json["chessboard"].is_null()) {
+    scene.chessboard.emplace(
+        ChessboardConfig::Parse(JsonReader(json["chessboard"], file_name, "chessboard")));
   }
   scene.frames = root.Integer("frames", 300, 1, 100000);
   const double seed = root.Number("seed", 1.0, 0.0, 9.0e15);

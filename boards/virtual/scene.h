@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "boards/virtual/chessboard.h"
 #include "boards/virtual/mesh.h"
 #include "boards/virtual/subjects.h"
 #include "boards/virtual/target.h"
@@ -106,6 +107,7 @@ struct Scene {
   Sensor sensor;
   Subject subject;
   std::optional<CalibrationTarget> target;
+  std::optional<Chessboard> chessboard;  // held for a lens calibration
   int frames = 300;
   uint64_t seed = 1;
 

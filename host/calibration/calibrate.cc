@@ -43,6 +43,7 @@ struct ViewPoints {
 struct CameraData {
   std::string name;
   int width = 0, height = 0;
+  std::optional<CameraIntrinsics> lens;  // fixed, from a lens calibration
   std::array<ViewPoints, kViews> views;
   CameraReport report;
 };
@@ -73,6 +74,15 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
   data.width = image.gray.cols;
   data.height = image.gray.rows;
   data.report.name = image.name;
+  if (image.lens) {
+    if (image.lens->width != data.width || image.lens->height != data.height) {
+      throw std::invalid_argument("camera " + image.name + ": the lens calibration is for " +
+                                  std::to_string(image.lens->width) + "x" +
+                                  std::to_string(image.lens->height) + " images, this image is " +
+                                  std::to_string(data.width) + "x" + std::to_string(data.height));
+    }
+    data.lens = image.lens;
+  }
   const auto detections = DetectTargetMarkers(image.gray, DetectorOptions(target));
   std::vector<uint8_t> levels(image.gray.begin<uint8_t>(), image.gray.end<uint8_t>());
   std::nth_element(levels.begin(), levels.begin() + levels.size() * 99 / 100, levels.end());
@@ -105,6 +115,12 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
     }
     report.observed = points.pixels;
   }
+  std::vector<Eigen::Vector2d> support =
+      image.lens ? image.lens_support_px : std::vector<Eigen::Vector2d>{};
+  for (const ViewPoints& v : data.views)
+    support.insert(support.end(), v.pixels.begin(), v.pixels.end());
+  data.report.coverage = LensCoverage::Of(support, data.width, data.height);
+  data.report.coverage.lens_fixed = image.lens.has_value();
   return data;
 }
 
@@ -161,6 +177,26 @@ bool CheckDetections(const CameraData& data, const CalibrationLimits& limits,
   return solvable;
 }
 
+void CheckCoverage(const CameraReport& report, const CalibrationLimits& limits,
+                   CalibrationResult& result) {
+  const double coverage = report.coverage.fraction;
+  const bool ok = coverage >= limits.min_lens_coverage;
+  result.checks.push_back({report.name + ".lens_coverage", coverage,
+                           ">= " + Format("%g", limits.min_lens_coverage), ok});
+  if (ok) return;
+  const std::string what = report.coverage.lens_fixed
+                               ? "the lens calibration's chessboard corners and the target"
+                               : "the target's markers (no lens calibration given)";
+  result.failures.push_back(
+      "camera " + report.name + ": the lens model rests on data on only " +
+      Format("%.0f", 100.0 * coverage) + "% of the image (" + what + "; limit " +
+      Format("%.0f", 100.0 * limits.min_lens_coverage) +
+      "%), and the cabinet uses all of it: calibrate the lens with a chessboard held over the "
+      "whole image, edges and corners included (mirrorscan calibrate-intrinsics), and give it "
+      "with --intrinsics " +
+      report.name + "=FILE");
+}
+
 // ---- Steps 1 and 2: three camera models per camera, mirrors by Eq. 1 ----
 
 // Pose of the (virtual, for mirror views flipped) camera of one view for given
@@ -175,10 +211,13 @@ Rigid3d ViewPose(const CameraData& data, int view, const CameraIntrinsics& k,
     const double u = view == 0 ? points.pixels[i].x() : data.width - 1 - points.pixels[i].x();
     image_points.emplace_back(u, points.pixels[i].y());
   }
+  // The flipped image of a mirror view is an ordinary camera with cx -> width - 1 - cx and,
+  // since x -> -x, p2 -> -p2.
   const cv::Matx33d camera_matrix(k.fx, 0, view == 0 ? k.cx : data.width - 1 - k.cx, 0, k.fy, k.cy,
                                   0, 0, 1);
+  const cv::Vec<double, 5> distortion(k.k1, k.k2, k.p1, view == 0 ? k.p2 : -k.p2, k.k3);
   cv::Mat rvec, tvec;
-  cv::solvePnP(object_points, image_points, camera_matrix, cv::noArray(), rvec, tvec);
+  cv::solvePnP(object_points, image_points, camera_matrix, distortion, rvec, tvec);
   cv::Mat rotation;
   cv::Rodrigues(rvec, rotation);
   Eigen::Matrix3d cam_from_panel;
@@ -235,6 +274,7 @@ InitialModel ModelForIntrinsics(const CameraData& data, const CameraIntrinsics& 
 // image centre and no distortion; the joint refinement frees everything.
 InitialModel InitialiseModel(const CameraData& data,
                              const virtual_cabinet::CalibrationTarget& target) {
+  if (data.lens) return ModelForIntrinsics(data, *data.lens, target);
   CameraIntrinsics k;
   k.width = data.width;
   k.height = data.height;
@@ -431,6 +471,7 @@ bool Refine(const std::vector<CameraData>& data, std::vector<CameraParameters>& 
       }
     }
     problem.SetManifold(p.rotation.data(), new ceres::EigenQuaternionManifold);
+    if (data[c].lens) problem.SetParameterBlockConstant(p.intrinsics.data());
   }
   for (auto& m : mirrors) problem.SetManifold(m.normal.data(), new ceres::SphereManifold<3>);
   ceres::Solver::Options options;
@@ -584,6 +625,20 @@ std::vector<CameraData> DetectAll(const std::vector<CameraImage>& images,
 
 }  // namespace
 
+LensCoverage LensCoverage::Of(const std::vector<Eigen::Vector2d>& pixels, int width, int height) {
+  LensCoverage coverage;
+  for (const Eigen::Vector2d& p : pixels) {
+    const int column = static_cast<int>(std::floor((p.x() + 0.5) * kColumns / width));
+    const int row = static_cast<int>(std::floor((p.y() + 0.5) * kRows / height));
+    if (column < 0 || column >= kColumns || row < 0 || row >= kRows) continue;
+    ++coverage.points[row * kColumns + column];
+  }
+  const auto covered =
+      std::count_if(coverage.points.begin(), coverage.points.end(), [](int n) { return n > 0; });
+  coverage.fraction = static_cast<double>(covered) / coverage.points.size();
+  return coverage;
+}
+
 CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
                                                    const std::string& file) {
   const JsonReader root(board, file);
@@ -607,7 +662,7 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
     l.AllowOnly({"max_rms_px", "min_markers_per_view", "min_contrast_dn", "max_edge_sigma_px",
                  "min_white_dn", "min_mirror_angle_deg", "max_mirror_angle_deg",
                  "max_mirror_tilt_deg", "max_corner_offset_mm", "max_yaw_deg", "verify_max_rms_px",
-                 "max_panel_offset_error_mm"});
+                 "max_panel_offset_error_mm", "min_lens_coverage"});
     CalibrationLimits& x = s.limits;
     x.max_rms_px = l.Number("max_rms_px", x.max_rms_px, 0.001, 100.0);
     x.min_markers_per_view = l.Integer("min_markers_per_view", x.min_markers_per_view, 4,
@@ -624,6 +679,7 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
     x.verify_max_rms_px = l.Number("verify_max_rms_px", x.verify_max_rms_px, 0.001, 100.0);
     x.max_panel_offset_error_mm =
         l.Number("max_panel_offset_error_mm", x.max_panel_offset_error_mm, 0.01, 1000.0);
+    x.min_lens_coverage = l.Number("min_lens_coverage", x.min_lens_coverage, 0.0, 1.0);
   }
   return s;
 }
@@ -638,6 +694,7 @@ CalibrationResult Calibrate(const std::vector<CameraImage>& images,
   CalibrationResult result;
   bool solvable = true;
   std::vector<CameraData> data = DetectAll(images, settings, target, result, solvable);
+  for (const CameraData& d : data) CheckCoverage(d.report, settings.limits, result);
   if (!solvable) {
     result.failures.push_back("calibration not attempted: a view has fewer than 4 markers");
     return result;
@@ -688,7 +745,8 @@ CalibrationResult Calibrate(const std::vector<CameraImage>& images,
   const std::array<Plane, 2> after = planes();
 
   Calibration calibration;
-  calibration.source = "mirrorscan calibrate";
+  calibration.source = data.front().lens ? "mirrorscan calibrate (lens from calibrate-intrinsics)"
+                                         : "mirrorscan calibrate (lens from the target alone)";
   calibration.target_id = settings.target_id;
   const auto corners = MirrorCorners(after, settings);
   for (int side = 0; side < 2; ++side) {
@@ -783,7 +841,21 @@ nlohmann::json CalibrationResult::ReportJson() const {
                        {"rms_after_px", v.rms_after_px},
                        {"max_after_px", v.max_after_px}});
     }
-    cameras_json.push_back({{"name", c.name}, {"white_dn", c.white_dn}, {"views", views}});
+    // One string per row of cells: '#' with data, '.' without.
+    nlohmann::json cells = nlohmann::json::array();
+    for (int row = 0; row < LensCoverage::kRows; ++row) {
+      std::string line;
+      for (int column = 0; column < LensCoverage::kColumns; ++column)
+        line += c.coverage.points[row * LensCoverage::kColumns + column] > 0 ? '#' : '.';
+      cells.push_back(line);
+    }
+    cameras_json.push_back({{"name", c.name},
+                            {"white_dn", c.white_dn},
+                            {"views", views},
+                            {"lens",
+                             {{"fixed", c.coverage.lens_fixed},
+                              {"coverage", c.coverage.fraction},
+                              {"cells", cells}}}});
   }
   nlohmann::json checks_json = nlohmann::json::array();
   for (const Check& c : checks) {
@@ -808,6 +880,20 @@ cv::Mat DrawReport(const CameraImage& image, const CameraReport& report) {
   cv::Mat out;
   cv::cvtColor(image.gray, out, cv::COLOR_GRAY2BGR);
   const cv::Scalar green(0, 200, 0), red(0, 0, 255);
+  // Lens coverage: cells with no data tinted red, a faint grid over the rest.
+  cv::Mat tint = out.clone();
+  for (int row = 0; row < LensCoverage::kRows; ++row) {
+    for (int column = 0; column < LensCoverage::kColumns; ++column) {
+      const cv::Rect cell(column * out.cols / LensCoverage::kColumns,
+                          row * out.rows / LensCoverage::kRows, out.cols / LensCoverage::kColumns,
+                          out.rows / LensCoverage::kRows);
+      if (report.coverage.points[row * LensCoverage::kColumns + column] == 0) {
+        cv::rectangle(tint, cell, red, cv::FILLED);
+      }
+      cv::rectangle(out, cell, cv::Scalar(90, 120, 90), 1);
+    }
+  }
+  cv::addWeighted(tint, 0.3, out, 0.7, 0.0, out);
   int line = 0;
   for (const ViewReport& v : report.views) {
     for (size_t i = 0; i < v.observed.size(); ++i) {
@@ -826,6 +912,12 @@ cv::Mat DrawReport(const CameraImage& image, const CameraReport& report) {
     cv::putText(out, text.str(), cv::Point(10, 24 + 22 * line++), cv::FONT_HERSHEY_SIMPLEX, 0.6,
                 cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
   }
+  cv::putText(out,
+              "lens data on " + Format("%.0f", 100.0 * report.coverage.fraction) +
+                  "% of the image (red: none)" +
+                  (report.coverage.lens_fixed ? ", lens fixed" : ", lens from the target"),
+              cv::Point(10, 24 + 22 * line++), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+              cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
   return out;
 }
 

@@ -222,8 +222,18 @@ nlohmann::json IntrinsicsToJson(const IntrinsicsResult& result) {
     pattern["dictionary"] = p.dictionary;
   }
   nlohmann::json images = nlohmann::json::array();
-  for (const PatternView& v : result.views)
-    images.push_back({{"path", v.image}, {"corners", v.corners_px.size()}, {"rms_px", v.rms_px}});
+  for (const PatternView& v : result.views) {
+    // The corners show where in the image the lens model rests on data (calibrate's
+    // coverage check); 0.01 px is far below their noise.
+    nlohmann::json corners = nlohmann::json::array();
+    for (const cv::Point2f& c : v.corners_px) {
+      corners.push_back({std::round(c.x * 100.0) / 100.0, std::round(c.y * 100.0) / 100.0});
+    }
+    images.push_back({{"path", v.image},
+                      {"corners", v.corners_px.size()},
+                      {"rms_px", v.rms_px},
+                      {"corners_px", corners}});
+  }
   return {{"schema", "mirrorscan.intrinsics"},
           {"version", 1},
           {"width", k.width},
@@ -236,6 +246,10 @@ nlohmann::json IntrinsicsToJson(const IntrinsicsResult& result) {
 }
 
 CameraIntrinsics ReadIntrinsicsJson(const std::filesystem::path& file) {
+  return ReadLensJson(file).intrinsics;
+}
+
+LensCalibration ReadLensJson(const std::filesystem::path& file) {
   const nlohmann::json json = JsonReader::ParseFile(file);
   const JsonReader reader(json, file.string());
   if (reader.String("schema") != "mirrorscan.intrinsics")
@@ -269,7 +283,28 @@ CameraIntrinsics ReadIntrinsicsJson(const std::filesystem::path& file) {
   k.p1 = d[2];
   k.p2 = d[3];
   k.k3 = d[4];
-  return k;
+  LensCalibration lens;
+  lens.intrinsics = k;
+  lens.rms_px = reader.Number("rms_px", 0.0, 0.0, 1e6);
+  if (reader.Has("images")) {
+    for (const JsonReader& image : reader.Objects("images")) {
+      if (!image.Has("corners_px")) continue;
+      const nlohmann::json& corners = image.value()["corners_px"];
+      if (!corners.is_array()) image.Fail("corners_px", "expected an array of [u, v]");
+      for (const nlohmann::json& c : corners) {
+        if (!c.is_array() || c.size() != 2 || !c[0].is_number() || !c[1].is_number()) {
+          image.Fail("corners_px", "expected an array of [u, v]");
+        }
+        const Eigen::Vector2d pixel(c[0].get<double>(), c[1].get<double>());
+        if (!(pixel.x() >= -0.5 && pixel.y() >= -0.5 && pixel.x() <= k.width - 0.5 &&
+              pixel.y() <= k.height - 0.5)) {
+          image.Fail("corners_px", "a corner lies outside the image");
+        }
+        lens.support_px.push_back(pixel);
+      }
+    }
+  }
+  return lens;
 }
 
 }  // namespace mirrorscan

@@ -81,4 +81,13 @@ nlohmann::json IntrinsicsToJson(const IntrinsicsResult& result);
 // file and key on bad content.
 CameraIntrinsics ReadIntrinsicsJson(const std::filesystem::path& file);
 
+// An intrinsics.json as the mirror calibration uses it: the lens, and the board corners it
+// was fitted to (where in the image the model rests on data; empty in older files).
+struct LensCalibration {
+  CameraIntrinsics intrinsics;
+  std::vector<Eigen::Vector2d> support_px;
+  double rms_px = 0.0;
+};
+LensCalibration ReadLensJson(const std::filesystem::path& file);
+
 }  // namespace mirrorscan

@@ -1,5 +1,6 @@
 #include "host/cli/calibrate_command.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 
 #include "common/config/calibration.h"
 #include "host/calibration/calibrate.h"
+#include "host/calibration/intrinsics.h"
 
 namespace mirrorscan::cli {
 
@@ -21,6 +23,7 @@ namespace fs = std::filesystem;
 
 struct CalibrateOptions {
   std::vector<std::string> images;
+  std::vector<std::string> intrinsics;  // CAMERA=intrinsics.json
   std::string board;
   std::string out;
   std::string verify;
@@ -60,7 +63,29 @@ std::vector<calibration::CameraImage> ReadImages(const CalibrateOptions& o,
     for (const auto& image : images) {
       if (image.name == name) throw std::runtime_error("--image: camera " + name + " given twice");
     }
-    images.push_back({name, gray});
+    images.push_back({name, gray, std::nullopt, {}});
+  }
+  for (const std::string& argument : o.intrinsics) {
+    const size_t equals = argument.find('=');
+    std::string name, path = argument;
+    if (equals != std::string::npos) {
+      name = argument.substr(0, equals);
+      path = argument.substr(equals + 1);
+    } else if (images.size() == 1) {
+      name = images.front().name;
+    } else {
+      throw std::runtime_error("--intrinsics " + argument +
+                               ": with several cameras, name each (--intrinsics upper=I.json)");
+    }
+    auto image = std::find_if(images.begin(), images.end(),
+                              [&](const calibration::CameraImage& i) { return i.name == name; });
+    if (image == images.end()) {
+      throw std::runtime_error("--intrinsics " + argument + ": no --image for camera " + name);
+    }
+    if (image->lens) throw std::runtime_error("--intrinsics: camera " + name + " given twice");
+    const LensCalibration lens = ReadLensJson(path);
+    image->lens = lens.intrinsics;
+    image->lens_support_px = lens.support_px;
   }
   return images;
 }
@@ -92,6 +117,11 @@ void Run(const CalibrateOptions& o) {
     std::printf("%s\n", result.ReportJson().dump(2).c_str());
   } else {
     for (const auto& camera : result.cameras) {
+      if (o.verify.empty()) {
+        std::printf("%-6s lens   %s, data on %.0f%% of the image\n", camera.name.c_str(),
+                    camera.coverage.lens_fixed ? "from calibrate-intrinsics" : "from the target",
+                    100.0 * camera.coverage.fraction);
+      }
       for (const auto& v : camera.views) {
         std::printf("%-6s %-6s %2zu markers  RMS %s%.3f px  max %.3f px\n", camera.name.c_str(),
                     calibration::ViewName(v.view), v.found.size(),
@@ -126,6 +156,13 @@ void AddCalibrateCommand(CLI::App& app) {
                    "Target image, one per camera: CAMERA=PATH (a single PATH means the board's "
                    "first camera)")
       ->required();
+  command
+      ->add_option("--intrinsics", options->intrinsics,
+                   "The lens of a camera from calibrate-intrinsics, held fixed: CAMERA=FILE")
+      ->check([](const std::string& argument) {
+        const std::string path = argument.substr(argument.find('=') + 1);
+        return std::filesystem::is_regular_file(path) ? std::string() : "no such file: " + path;
+      });
   command->add_option("--board", options->board, "board.json (cameras, calibration limits)")
       ->required()
       ->check(CLI::ExistingFile);

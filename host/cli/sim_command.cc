@@ -47,7 +47,8 @@ struct SimOptions {
   std::string peaks;  // .mscan archive of the sweep's peaks
   std::string board;  // peak extractor parameters from this board.json
   bool no_images = false;
-  bool pgm = false;  // frames as binary PGM (what the replay camera plays) instead of PNG
+  bool pgm = false;            // frames as binary PGM (what the replay camera plays) instead of PNG
+  double distance_mm = 900.0;  // chessboard: from the camera
 };
 
 // A view of the rendered pixels (no copy); valid while `image` lives.
@@ -314,6 +315,47 @@ void Scan(const SimOptions& o) {
   }
 }
 
+// Photographs for a lens calibration: the scene's chessboard (or the default one) held in
+// front of each camera in the poses an operator would use, lasers off.
+void Chessboard(const SimOptions& o) {
+  const Scene base = LoadScene(o);
+  const virtual_cabinet::ChessboardConfig board =
+      base.chessboard ? base.chessboard->config() : virtual_cabinet::ChessboardConfig{};
+  fs::create_directories(o.out);
+  nlohmann::json images = nlohmann::json::array();
+  for (int camera : SelectCameras(base, o.camera)) {
+    const auto poses =
+        virtual_cabinet::LensCalibrationPoses(base.cameras[camera].camera, board, o.distance_mm);
+    for (size_t i = 0; i < poses.size(); ++i) {
+      Scene scene = base;
+      scene.chessboard.emplace(poses[i]);
+      scene.lasers.power = 0.0;  // lasers off for a lens calibration
+      const Renderer renderer(scene);
+      const GrayImage image = renderer.RenderFrame(camera, 0.0, i, /*lasers_on=*/false);
+      const std::string name = scene.cameras[camera].name + "_chessboard" + (i < 10 ? "0" : "") +
+                               std::to_string(i) + ".png";
+      WritePng(fs::path(o.out) / name, MatView(image));
+      const Eigen::Vector3d& c = poses[i].center_mm;
+      images.push_back({{"camera", scene.cameras[camera].name},
+                        {"image", name},
+                        {"center_mm", {c.x(), c.y(), c.z()}}});
+      std::fprintf(stderr, "sim chessboard: %s (%zu of %zu)\n", name.c_str(), i + 1, poses.size());
+    }
+  }
+  const nlohmann::json info = {{"inner_corners", {board.inner_columns, board.inner_rows}},
+                               {"square_mm", board.square_mm},
+                               {"distance_mm", o.distance_mm},
+                               {"images", images}};
+  WriteJson(fs::path(o.out) / "chessboard.json", info);
+  if (o.json) {
+    std::printf("%s\n", info.dump(2).c_str());
+  } else {
+    std::printf("rendered %zu chessboard images (%dx%d inner corners, %g mm squares) into %s\n",
+                images.size(), board.inner_columns, board.inner_rows, board.square_mm,
+                o.out.c_str());
+  }
+}
+
 }  // namespace
 
 void AddSimCommands(CLI::App& app) {
@@ -365,6 +407,25 @@ void AddSimCommands(CLI::App& app) {
                  "Write frames as 8-bit binary PGM (P5), which the firmware's replay camera plays");
   scan->add_flag("--json", options->json, "Machine-readable output");
   scan->callback([options] { Scan(*options); });
+
+  auto* chessboard =
+      sim->add_subcommand("chessboard",
+                          "Render a chessboard held in front of each camera in several poses, for "
+                          "calibrate-intrinsics");
+  chessboard
+      ->add_option("--scene", options->scene_path,
+                   "Scene file (its \"chessboard\" object sets the pattern)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  chessboard->add_option("--out", options->out, "Output directory")->required();
+  chessboard->add_option("--camera", options->camera, "Only this camera (by name)");
+  chessboard
+      ->add_option("--distance-mm", options->distance_mm,
+                   "Board distance from the camera (default 900)")
+      ->check(CLI::Range(100.0, 5000.0));
+  chessboard->add_flag("--no-noise", options->no_noise, "Noise-free sensor");
+  chessboard->add_flag("--json", options->json, "Machine-readable output");
+  chessboard->callback([options] { Chessboard(*options); });
 }
 
 }  // namespace mirrorscan::cli
