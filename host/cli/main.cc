@@ -7,6 +7,7 @@
 #include "host/cli/calibrate_intrinsics_command.h"
 #include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/device_command.h"
+#include "host/cli/measure_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/sim_command.h"
 
@@ -19,6 +20,7 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   mirrorscan::cli::AddCalibrateLasersCommand(app);
   mirrorscan::cli::AddDeviceCommands(app);
+  mirrorscan::cli::AddMeasureCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

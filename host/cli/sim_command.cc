@@ -15,6 +15,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "boards/virtual/mesh_io.h"
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
 #include "common/config/json_reader.h"
@@ -35,6 +36,7 @@ namespace {
 struct SimOptions {
   std::string scene_path;
   std::string out;
+  std::string truth_out;
   std::string camera;
   int frame = -1;
   double time = -1;
@@ -314,6 +316,31 @@ void Scan(const SimOptions& o) {
   }
 }
 
+// The scene's subject as a mesh file, and its metadata (a mannequin's "truth" with it).
+void WriteSubject(const SimOptions& o) {
+  const Scene scene = Scene::Load(o.scene_path);
+  if (scene.subject.mesh.empty()) throw std::runtime_error(o.scene_path + ": the scene has no subject");
+  try {
+    virtual_cabinet::WriteMeshFile(scene.subject.mesh, o.out);
+  } catch (const virtual_cabinet::MeshIoError& e) {
+    throw std::runtime_error(e.what());
+  }
+  if (!o.truth_out.empty()) {
+    std::ofstream out(o.truth_out);
+    out << scene.subject.metadata.dump(2) << "\n";
+    if (!out) throw std::runtime_error(o.truth_out + ": cannot write");
+  }
+  const nlohmann::json summary = {{"mesh", o.out},
+                                  {"type", scene.subject.type},
+                                  {"triangles", scene.subject.mesh.triangles.size()}};
+  if (o.json) {
+    std::printf("%s\n", summary.dump(2).c_str());
+  } else {
+    std::printf("wrote the %s (%zu triangles) to %s\n", scene.subject.type.c_str(),
+                scene.subject.mesh.triangles.size(), o.out.c_str());
+  }
+}
+
 }  // namespace
 
 void AddSimCommands(CLI::App& app) {
@@ -365,6 +392,17 @@ void AddSimCommands(CLI::App& app) {
                  "Write frames as 8-bit binary PGM (P5), which the firmware's replay camera plays");
   scan->add_flag("--json", options->json, "Machine-readable output");
   scan->callback([options] { Scan(*options); });
+
+  auto* subject = sim->add_subcommand(
+      "subject", "Write the scene's exact subject surface as a mesh, and its truth as JSON");
+  subject->add_option("--scene", options->scene_path, "Scene file")
+      ->required()
+      ->check(CLI::ExistingFile);
+  subject->add_option("--out", options->out, "Mesh file (.ply, .obj or .stl)")->required();
+  subject->add_option("--truth", options->truth_out,
+                      "Write the subject's metadata here (a mannequin's measurement truth)");
+  subject->add_flag("--json", options->json, "Machine-readable output");
+  subject->callback([options] { WriteSubject(*options); });
 }
 
 }  // namespace mirrorscan::cli
