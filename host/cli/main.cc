@@ -8,6 +8,7 @@
 #include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/device_command.h"
 #include "host/cli/peaks_command.h"
+#include "host/cli/reconstruct_command.h"
 #include "host/cli/sim_command.h"
 
 int main(int argc, char** argv) {
@@ -18,6 +19,7 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddCalibrateCommand(app);
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   mirrorscan::cli::AddCalibrateLasersCommand(app);
+  mirrorscan::cli::AddReconstructCommand(app);
   mirrorscan::cli::AddDeviceCommands(app);
   try {
     app.parse(argc, argv);
