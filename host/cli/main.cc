@@ -10,6 +10,8 @@
 #include "host/cli/exit_status.h"
 #include "host/cli/mesh_command.h"
 #include "host/cli/peaks_command.h"
+#include "host/cli/process_command.h"
+#include "host/cli/reconstruct_command.h"
 #include "host/cli/sim_command.h"
 
 int main(int argc, char** argv) {
@@ -20,8 +22,10 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddCalibrateCommand(app);
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   mirrorscan::cli::AddCalibrateLasersCommand(app);
+  mirrorscan::cli::AddReconstructCommand(app);
   mirrorscan::cli::AddDeviceCommands(app);
   mirrorscan::cli::AddMeshCommand(app);
+  mirrorscan::cli::AddProcessCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

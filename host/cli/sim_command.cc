@@ -18,9 +18,11 @@
 #include "boards/virtual/mesh_io.h"
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
+#include "common/config/calibration.h"
 #include "boards/virtual/surface_samples.h"
 #include "common/config/json_reader.h"
 #include "common/peaks/peaks.h"
+#include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "host/cli/peaks_command.h"
 
@@ -48,6 +50,9 @@ struct SimOptions {
   std::string contact_sheet;
   std::string peaks;  // .mscan archive of the sweep's peaks
   std::string board;  // peak extractor parameters from this board.json
+  // The calibration the archive is made with (as a device records the one it holds);
+  // default: the scene's true calibration, embedded whole.
+  std::string calibration;
   bool no_images = false;
   bool pgm = false;         // frames as binary PGM (what the replay camera plays) instead of PNG
   double spacing_mm = 4.0;  // `sim surface`: one truth sample per spacing² of area
@@ -248,17 +253,23 @@ void Scan(const SimOptions& o) {
     ScanFileWriterOptions writer_options;
     writer_options.overwrite = true;
     ScanFileWriter writer(o.peaks, writer_options);
-    writer.Begin(
-        {{"device", "virtual-cabinet"},
-         {"board", "virtual"},
-         {"source", "mirrorscan sim scan"},
-         {"scene", o.scene_path},
-         {"calibration", scene.TrueCalibration()},
-         {"cameras", cameras_json},
-         {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
-         // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
-         {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
-         {"start_steady_ns", 0}});
+    nlohmann::json header = {
+        {"device", "virtual-cabinet"},
+        {"board", "virtual"},
+        {"source", "mirrorscan sim scan"},
+        {"scene", o.scene_path},
+        {"cameras", cameras_json},
+        {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
+        // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
+        {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
+        {"start_steady_ns", 0}};
+    if (o.calibration.empty()) {
+      header["calibration"] = scene.TrueCalibration();
+    } else {
+      header["calibration_sha256"] = protocol::Sha256::HexOfFile(o.calibration);
+      header["calibration_hash"] = Calibration::Load(o.calibration).ContentHash();
+    }
+    writer.Begin(header);
     size_t peak_count = 0;
     for (const FrameRecord& record : records) {
       writer.AppendFrame(record);
@@ -395,6 +406,10 @@ void AddSimCommands(CLI::App& app) {
                    "Also extract laser peaks from every frame into this .mscan archive");
   scan->add_option("--board", options->board,
                    "Peak extractor parameters from this board.json (its \"peaks\" object)")
+      ->check(CLI::ExistingFile);
+  scan->add_option("--calibration", options->calibration,
+                   "With --peaks: record this calibration in the archive's header (its SHA-256 "
+                   "and content hash, as the device does) instead of the scene's true one")
       ->check(CLI::ExistingFile);
   scan->add_flag("--no-images", options->no_images, "Do not write PNG frames (e.g. with --peaks)");
   scan->add_flag("--pgm", options->pgm,

@@ -95,7 +95,10 @@ struct ReconstructOptions {
   bool smooth_3x3 = true;       // the paper's 3×3 average in (column, frame)
   bool remove_outliers = true;  // statistical, against the (column, frame) neighbours
   double outlier_sigmas = 4.0;
-  bool drop_stripe_ends = true;  // the last columns of a stripe leave the plane's trace
+  double outlier_min_mm = 0.5;  // never an outlier closer than this to its neighbours
+  // The last columns of a stripe leave the plane's trace; they get a low confidence and are
+  // dropped only when asked.
+  bool drop_stripe_ends = false;
   int stripe_end_columns = 2;
   bool clip_to_cylinder = true;
   // Optional ICP refinement of mirror views and the lower camera against the rest
@@ -140,6 +143,8 @@ struct ReconstructSummary {
   LaserHeightSummary laser_height;
   // How each peak's laser/view was decided, or why it was dropped.
   size_t decided_by_cylinder = 0;  // one hypothesis inside the bounding cylinder
+  // Exactly one hypothesis near points the cylinder decided (the volume the scan carves).
+  size_t decided_by_volume = 0;
   size_t decided_by_column_count = 0;
   size_t decided_by_label_vote = 0;
   size_t dropped_panel = 0;        // the laser line on a panel (laser-height data)
