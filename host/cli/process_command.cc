@@ -326,7 +326,8 @@ void Run(const ProcessOptions& o) {
     WriteJsonFile(out / "measurements.json", measurements);
     written.push_back((out / "measurements.json").string());
     int measured = 0, withheld = 0;
-    for (const measurement::Measurement& m : body.measurements) ++(m.value_mm ? measured : withheld);
+    for (const measurement::Measurement& m : body.measurements)
+      ++(m.value_mm ? measured : withheld);
     summary["measurements"] = {{"file", "measurements.json"},
                                {"human", body.human},
                                {"stature_mm", measurements["stature_mm"]},

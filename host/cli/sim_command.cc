@@ -332,7 +332,8 @@ void Scan(const SimOptions& o) {
 // The scene's subject as a mesh file, and its metadata (a mannequin's "truth" with it).
 void WriteSubject(const SimOptions& o) {
   const Scene scene = Scene::Load(o.scene_path);
-  if (scene.subject.mesh.empty()) throw std::runtime_error(o.scene_path + ": the scene has no subject");
+  if (scene.subject.mesh.empty())
+    throw std::runtime_error(o.scene_path + ": the scene has no subject");
   try {
     virtual_cabinet::WriteMeshFile(scene.subject.mesh, o.out);
   } catch (const virtual_cabinet::MeshIoError& e) {
