@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <numbers>
 #include <sstream>
 #include <stdexcept>
 
@@ -322,7 +323,7 @@ class Analysis {
         arm.centroids.push_back(hit.centroid);
         area = std::max(area, hit.area);
       }
-      arm.radius = std::sqrt(area / M_PI);
+      arm.radius = std::sqrt(area / std::numbers::pi);
       arm.hand_z = arm.raised ? high.z : low.z;
       // Refine the junction: the last height at which the arm is still apart.
       double apart = arm.raised ? low.z : high.z;

@@ -3,6 +3,7 @@
 #include "host/measurement/measure.h"
 
 #include <cmath>
+#include <numbers>
 #include <string>
 #include <vector>
 
@@ -230,7 +231,7 @@ TEST(NonHumanMeasureTest, CylinderIsNotMeasuredButItsGirthIsTaken) {
   const BodyMeasurements body = MeasureBody(ToSurface(vc::MakeCylinder(p).mesh), options);
   ASSERT_EQ(body.slices.size(), 1u);
   ASSERT_TRUE(body.slices[0].girth_mm);
-  EXPECT_NEAR(*body.slices[0].girth_mm, 2.0 * M_PI * p.radius_mm, 0.1);
+  EXPECT_NEAR(*body.slices[0].girth_mm, 2.0 * std::numbers::pi * p.radius_mm, 0.1);
 }
 
 TEST(MeasureJsonTest, ShapeOfTheIssue) {
