@@ -138,6 +138,8 @@ constexpr double kArmLength = 0.42;
 constexpr double kArmTopRadius = 0.026;
 constexpr double kArmBottomRadius = 0.018;
 constexpr double kArmJointBelowShoulder = 0.02;
+constexpr double kArmBuried = 0.03;  // the arm starts this far up its line, in the shoulder
+constexpr double kNeckBelowShoulder = 0.015;
 constexpr double kAnkleRadius = 0.020;
 constexpr double kLegOffset = 0.48;     // leg axis x, of the hip half-width
 constexpr double kLegTopRadius = 0.44;  // of the hip half-width
@@ -177,6 +179,10 @@ std::optional<MannequinShape> SolveMannequin(const MannequinParams& p, std::stri
   const std::array<std::pair<double, double>, 3> stations = {
       {{kChestZ * h, s.chest_a}, {kWaistZ * h, s.waist_a}, {kHipZ * h, s.hip_a}}};
   const std::array<const char*, 3> names = {"chest_girth_mm", "waist_girth_mm", "hip_girth_mm"};
+  if (p.arm_angle_deg) {  // posed: the arms may come as near the torso as asked
+    s.arm_angle = Radians(*p.arm_angle_deg);
+    return s;
+  }
   for (double deg = 20.0; deg <= 50.0 + 1e-9; deg += 0.25) {
     bool clear = true;
     for (size_t k = 0; k < stations.size(); ++k) {
@@ -231,15 +237,29 @@ class Pchip {
   std::vector<double> x_, y_, m_;
 };
 
-TriangleMesh MakeTorso(const MannequinParams& p, const MannequinShape& s) {
+// The torso's half width and half depth as functions of height, through its stations.
+struct TorsoProfile {
+  std::vector<double> z;
+  Pchip half_width, half_depth;
+};
+
+TorsoProfile MakeTorsoProfile(const MannequinParams& p, const MannequinShape& s) {
   const double h = p.height_mm;
   const double neck_a = kNeckHalfWidth * h;
-  const std::vector<double> z = {kCrotchZ * h, kHipZ * h,      kWaistZ * h,
-                                 kChestZ * h,  kShoulderZ * h, kNeckBaseZ * h};
-  const Pchip half_width(
-      z, {kCrotchWidth * s.hip_a, s.hip_a, s.waist_a, s.chest_a, s.shoulder_a, neck_a});
-  const Pchip half_depth(z, {kCrotchRatio * kCrotchWidth * s.hip_a, s.hip_b, s.waist_b, s.chest_b,
-                             kShoulderRatio * s.shoulder_a, kNeckRatio * neck_a});
+  std::vector<double> z = {kCrotchZ * h, kHipZ * h,      kWaistZ * h,
+                           kChestZ * h,  kShoulderZ * h, kNeckBaseZ * h};
+  Pchip half_width(z,
+                   {kCrotchWidth * s.hip_a, s.hip_a, s.waist_a, s.chest_a, s.shoulder_a, neck_a});
+  Pchip half_depth(z, {kCrotchRatio * kCrotchWidth * s.hip_a, s.hip_b, s.waist_b, s.chest_b,
+                       kShoulderRatio * s.shoulder_a, kNeckRatio * neck_a});
+  return {std::move(z), std::move(half_width), std::move(half_depth)};
+}
+
+TriangleMesh MakeTorso(const MannequinParams& p, const MannequinShape& s) {
+  const TorsoProfile profile = MakeTorsoProfile(p, s);
+  const std::vector<double>& z = profile.z;
+  const Pchip& half_width = profile.half_width;
+  const Pchip& half_depth = profile.half_depth;
   std::vector<Ring> rings;
   for (size_t k = 0; k + 1 < z.size(); ++k) {
     const int steps = static_cast<int>(std::ceil((z[k + 1] - z[k]) / kMaxRingSpacing));
@@ -281,6 +301,112 @@ TriangleMesh MakeHead(double height) {
   // The top pole is set, not computed, so the head's top is exactly at `height`.
   return Loft(rings, Eigen::Vector3d(0, 0, center_z - az), Eigen::Vector3d(0, 0, height));
 }
+
+// The mannequin's parts as solids in its own frame (facing -y, before yaw and centring):
+// what MakeMannequin tessellates, for truth taken from the shapes rather than the mesh.
+class MannequinSolid {
+ public:
+  MannequinSolid(const MannequinParams& p, const MannequinShape& s)
+      : p_(p), s_(s), torso_(MakeTorsoProfile(p, s)), h_(p.height_mm) {}
+
+  double h() const { return h_; }
+  const MannequinShape& shape() const { return s_; }
+  bool ArmsRaised() const { return s_.arm_angle > kPi / 2; }
+  double TorsoGirth(double z) const {
+    return EllipsePerimeter(torso_.half_width(z), torso_.half_depth(z));
+  }
+  double TorsoDepth(double z) const { return torso_.half_depth(z); }
+  double LegTopZ() const { return 0.5 * (kCrotchZ + kHipZ) * h_; }
+  double LegRadius(double z) const {
+    const double top = kLegTopRadius * s_.hip_a, floor = kAnkleRadius * h_;
+    return floor + (top - floor) * z / LegTopZ();
+  }
+  Eigen::Vector3d ArmJoint(double side) const {
+    return {side * s_.shoulder_a, 0.0, (kShoulderZ - kArmJointBelowShoulder) * h_};
+  }
+  Eigen::Vector3d ArmDown(double side) const {
+    return {side * std::sin(s_.arm_angle), 0.0, -std::cos(s_.arm_angle)};
+  }
+  // Radius of the arm tube at distance t along its axis from its buried start.
+  double ArmRadius(double t) const {
+    const double length = (kArmBuried + kArmLength) * h_;
+    return kArmTopRadius * h_ + (kArmBottomRadius - kArmTopRadius) * h_ * t / length;
+  }
+
+  bool Inside(const Eigen::Vector3d& q) const {
+    const double z = q.z();
+    if (z >= kCrotchZ * h_ && z <= kNeckBaseZ * h_) {
+      const double a = torso_.half_width(z), b = torso_.half_depth(z);
+      if (std::pow(q.x() / a, 2) + std::pow(q.y() / b, 2) <= 1.0) return true;
+    }
+    for (const double side : {1.0, -1.0}) {
+      const double leg_x = side * kLegOffset * s_.hip_a;
+      if (z >= 0.0 && z <= LegTopZ() && std::hypot(q.x() - leg_x, q.y()) <= LegRadius(z)) {
+        return true;
+      }
+      const Eigen::Vector3d start = ArmJoint(side) - kArmBuried * h_ * ArmDown(side);
+      const double t = (q - start).dot(ArmDown(side));
+      if (t >= 0.0 && t <= (kArmBuried + kArmLength) * h_ &&
+          (q - start - t * ArmDown(side)).norm() <= ArmRadius(t)) {
+        return true;
+      }
+    }
+    const double head_center_z = h_ - kHeadSemiAxes[2] * h_;
+    if (z >= (kShoulderZ - kNeckBelowShoulder) * h_ && z <= head_center_z &&
+        std::hypot(q.x(), q.y()) <= kNeckRadius * h_) {
+      return true;
+    }
+    return std::pow(q.x() / (kHeadSemiAxes[0] * h_), 2) +
+               std::pow(q.y() / (kHeadSemiAxes[1] * h_), 2) +
+               std::pow((z - head_center_z) / (kHeadSemiAxes[2] * h_), 2) <=
+           1.0;
+  }
+
+  // Where the line from `inside` along `direction` first leaves the body (to 0.001 mm).
+  Eigen::Vector3d Exit(const Eigen::Vector3d& inside, const Eigen::Vector3d& direction) const {
+    double t = 0.0;
+    while (Inside(inside + (t + 0.25) * direction)) t += 0.25;
+    double lo = t, hi = t + 0.25;
+    while (hi - lo > 1e-4) {
+      const double mid = 0.5 * (lo + hi);
+      (Inside(inside + mid * direction) ? lo : hi) = mid;
+    }
+    return inside + lo * direction;
+  }
+
+  // Lower bound on the horizontal gap between the torso and either hanging arm at z.
+  double ArmGapAt(double z) const { return ArmGap(p_, s_, s_.arm_angle, z, torso_.half_width(z)); }
+
+ private:
+  MannequinParams p_;
+  MannequinShape s_;
+  TorsoProfile torso_;
+  double h_;
+};
+
+// The z in [lo, hi] where f is largest, to 0.01 mm (f has one peak there).
+template <typename F>
+double ArgMax(F f, double lo, double hi) {
+  double best = lo;
+  for (double z = lo; z <= hi; z += 0.5) {
+    if (f(z) > f(best)) best = z;
+  }
+  double a = std::max(lo, best - 0.5), b = std::min(hi, best + 0.5);
+  for (double step = 0.01; b - a > step;) {
+    const double m1 = a + (b - a) / 3, m2 = b - (b - a) / 3;
+    if (f(m1) < f(m2)) {
+      a = m1;
+    } else {
+      b = m2;
+    }
+  }
+  return 0.5 * (a + b);
+}
+
+// Height of the thigh girth below the crotch, and the fraction of the shoulder-to-wrist
+// length at which the upper-arm girth is taken: host/measurement's definitions.
+constexpr double kThighBelowCrotchMm = 20.0;
+constexpr double kUpperArmFraction = 0.275;
 
 // The girth recorded is the ellipse's own perimeter, not the request, so ground truth is
 // what the mesh models even if the solve were off.
@@ -405,6 +531,9 @@ Subject MakeMannequin(const MannequinParams& p) {
   std::string blocking;
   const std::optional<MannequinShape> shape = SolveMannequin(p, &blocking);
   Require(shape.has_value(), "mannequin: " + blocking + " leaves no room for the arms");
+  Require(!p.arm_angle_deg || (*p.arm_angle_deg >= 4.0 && *p.arm_angle_deg <= 60.0) ||
+              (*p.arm_angle_deg >= 100.0 && *p.arm_angle_deg <= 150.0),
+          "mannequin: the arm angle must hang the arms (4..60) or raise them (100..150)");
   const MannequinShape& s = *shape;
   const double h = p.height_mm;
 
@@ -427,11 +556,12 @@ Subject MakeMannequin(const MannequinParams& p) {
                                 (kShoulderZ - kArmJointBelowShoulder) * h);
     const Eigen::Vector3d down(side * std::sin(s.arm_angle), 0.0, -std::cos(s.arm_angle));
     // The arm starts a little up its own line so its end is buried in the shoulder.
-    parts.push_back({name + "_arm", Tube(joint - 0.03 * h * down, joint + kArmLength * h * down,
-                                         kArmTopRadius * h, kArmBottomRadius * h, kSegments)});
+    parts.push_back(
+        {name + "_arm", Tube(joint - kArmBuried * h * down, joint + kArmLength * h * down,
+                             kArmTopRadius * h, kArmBottomRadius * h, kSegments)});
   }
   const double head_center_z = h - kHeadSemiAxes[2] * h;
-  parts.push_back({"neck", Tube(Eigen::Vector3d(0, 0, (kShoulderZ - 0.015) * h),
+  parts.push_back({"neck", Tube(Eigen::Vector3d(0, 0, (kShoulderZ - kNeckBelowShoulder) * h),
                                 Eigen::Vector3d(0, 0, head_center_z), kNeckRadius * h,
                                 kNeckRadius * h, kSegments)});
   parts.push_back({"head", MakeHead(h)});
@@ -442,15 +572,91 @@ Subject MakeMannequin(const MannequinParams& p) {
   meta["params"] = {{"height_mm", p.height_mm},           {"chest_girth_mm", p.chest_girth_mm},
                     {"waist_girth_mm", p.waist_girth_mm}, {"hip_girth_mm", p.hip_girth_mm},
                     {"center_mm", ToJson(p.center_mm)},   {"yaw_deg", p.yaw_deg}};
+  meta["params"]["arm_angle_deg"] =
+      p.arm_angle_deg ? nlohmann::json(*p.arm_angle_deg) : nlohmann::json(nullptr);
   meta["height_mm"] = h;
   meta["arm_angle_deg"] = s.arm_angle * 180.0 / kPi;
   meta["chest"] = StationJson(kChestZ * h, s.chest_a, s.chest_b);
   meta["waist"] = StationJson(kWaistZ * h, s.waist_a, s.waist_b);
   meta["hip"] = StationJson(kHipZ * h, s.hip_a, s.hip_b);
+  meta["truth"] = MannequinMeasurementTruth(p);
   subject.mesh = Assemble(parts, meta);
   subject.mesh.Transform(
       YawAbout(Eigen::Vector3d(p.center_mm.x(), p.center_mm.y(), 0.0), p.yaw_deg));
   return subject;
+}
+
+namespace {
+
+MannequinSolid SolidOf(const MannequinParams& p) {
+  std::string blocking;
+  const std::optional<MannequinShape> shape = SolveMannequin(p, &blocking);
+  Require(shape.has_value(), "mannequin: " + blocking + " leaves no room for the arms");
+  return MannequinSolid(p, *shape);
+}
+
+}  // namespace
+
+nlohmann::json MannequinMeasurementTruth(const MannequinParams& p) {
+  const MannequinSolid body = SolidOf(p);
+  const double h = body.h();
+  const double crotch = kCrotchZ * h, hip = kHipZ * h, waist = kWaistZ * h;
+  const double chest = kChestZ * h, shoulder = kShoulderZ * h;
+  auto girth = [&body](double z) { return body.TorsoGirth(z); };
+  const double hip_z = ArgMax(girth, crotch, waist);
+  const double waist_z = ArgMax([&](double z) { return -girth(z); }, hip, chest);
+  const double chest_z = ArgMax([&](double z) { return body.TorsoDepth(z); }, waist, shoulder);
+  const double thigh_z = crotch - kThighBelowCrotchMm;
+  nlohmann::json truth = {{"stature_mm", h},
+                          {"crotch_height_mm", crotch},
+                          {"hip_girth_mm", girth(hip_z)},
+                          {"hip_z_mm", hip_z},
+                          {"waist_girth_mm", girth(waist_z)},
+                          {"waist_z_mm", waist_z},
+                          {"chest_girth_mm", girth(chest_z)},
+                          {"chest_z_mm", chest_z},
+                          {"thigh_girth_mm", 2.0 * kPi * body.LegRadius(thigh_z)},
+                          {"thigh_z_mm", thigh_z},
+                          {"neck_girth_mm", 2.0 * kPi * kNeckRadius * h}};
+  const Eigen::Affine3d world_from_body =
+      YawAbout(Eigen::Vector3d(p.center_mm.x(), p.center_mm.y(), 0.0), p.yaw_deg);
+  if (body.ArmsRaised()) {
+    for (const char* key : {"upper_arm_girth_mm", "shoulder_breadth_mm", "arm_length_mm",
+                            "shoulder_points_mm", "wrist_points_mm"}) {
+      truth[key] = nullptr;
+    }
+    return truth;
+  }
+  // Shoulder point: where the arm's axis, followed up past the joint, leaves the body.
+  std::array<Eigen::Vector3d, 2> shoulder_points, wrist_points;
+  for (int k = 0; k < 2; ++k) {
+    const double side = k == 0 ? 1.0 : -1.0;
+    const Eigen::Vector3d joint = body.ArmJoint(side), down = body.ArmDown(side);
+    shoulder_points[k] = body.Exit(joint, -down);
+    wrist_points[k] = joint + kArmLength * h * down;
+  }
+  const Eigen::Vector3d& s = shoulder_points[0];
+  const Eigen::Vector3d& w = wrist_points[0];
+  const Eigen::Vector3d upper_arm = s + kUpperArmFraction * (w - s);
+  const Eigen::Vector3d arm_start = body.ArmJoint(1.0) - kArmBuried * h * body.ArmDown(1.0);
+  truth["upper_arm_girth_mm"] =
+      2.0 * kPi * body.ArmRadius((upper_arm - arm_start).dot(body.ArmDown(1.0)));
+  truth["shoulder_breadth_mm"] = (shoulder_points[0] - shoulder_points[1]).norm();
+  truth["arm_length_mm"] = (s - w).norm();
+  truth["shoulder_points_mm"] = {ToJson((world_from_body * shoulder_points[0]).eval()),
+                                 ToJson((world_from_body * shoulder_points[1]).eval())};
+  truth["wrist_points_mm"] = {ToJson((world_from_body * wrist_points[0]).eval()),
+                              ToJson((world_from_body * wrist_points[1]).eval())};
+  return truth;
+}
+
+std::optional<GirthTruth> MannequinGirthTruth(const MannequinParams& p, double z) {
+  const MannequinSolid body = SolidOf(p);
+  const double h = body.h();
+  if (z > 0.0 && z < kCrotchZ * h) return GirthTruth{"left_leg", 2.0 * kPi * body.LegRadius(z)};
+  if (z < kCrotchZ * h || z > kChestZ * h) return std::nullopt;
+  if (!body.ArmsRaised() && body.ArmGapAt(z) <= 0.0) return std::nullopt;
+  return GirthTruth{"torso", body.TorsoGirth(z)};
 }
 
 Subject LoadMeshSubject(const MeshParams& p) {
@@ -523,7 +729,7 @@ Subject ParseSubject(const JsonReader& json, const std::filesystem::path& base_d
   }
   if (type == "mannequin") {
     json.AllowOnly({"type", "height_mm", "chest_girth_mm", "waist_girth_mm", "hip_girth_mm",
-                    "center_mm", "yaw_deg"});
+                    "center_mm", "yaw_deg", "arm_angle_deg"});
     MannequinParams p;
     p.height_mm = json.Number("height_mm", p.height_mm, 1000.0, 2300.0);
     p.chest_girth_mm = json.Number("chest_girth_mm", p.chest_girth_mm, 500.0, 1800.0);
@@ -531,6 +737,12 @@ Subject ParseSubject(const JsonReader& json, const std::filesystem::path& base_d
     p.hip_girth_mm = json.Number("hip_girth_mm", p.hip_girth_mm, 500.0, 1800.0);
     p.center_mm = vector2("center_mm", p.center_mm);
     p.yaw_deg = json.Number("yaw_deg", p.yaw_deg, -360.0, 360.0);
+    if (json.Has("arm_angle_deg")) {
+      p.arm_angle_deg = json.Number("arm_angle_deg", std::nullopt, 4.0, 150.0);
+      if (*p.arm_angle_deg > 60.0 && *p.arm_angle_deg < 100.0) {
+        json.Fail("arm_angle_deg", "must hang the arms (4..60) or raise them (100..150)");
+      }
+    }
     std::string blocking;
     if (!SolveMannequin(p, &blocking)) {
       json.Fail(blocking, "too large for height_mm " + Format(p.height_mm) +

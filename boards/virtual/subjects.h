@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <Eigen/Core>
@@ -42,12 +43,16 @@ struct CylinderParams {
   Eigen::Vector2d center_mm{0.0, 0.0};
 };
 
-// A parametric human-like body facing -y (the camera) in an A-pose. Its torso
-// cross-sections are ellipses; at the chest, waist and hip stations the ellipse's exact
-// perimeter is the requested girth. The arms are held clear of the torso at and below
-// chest height, so a horizontal girth at any station cuts only the torso there.
-// Metadata adds "height_mm", "arm_angle_deg" and, for "chest", "waist" and "hip",
-// {"girth_mm", "z_mm", "semi_axes_mm": [half width, half depth]}.
+// A parametric human-like body facing -y (the camera). Its torso cross-sections are
+// ellipses; at the chest, waist and hip stations the ellipse's exact perimeter is the
+// requested girth. By default it stands in an A-pose with the arms held clear of the
+// torso at and below chest height, so a horizontal girth at any station cuts only the
+// torso there; `arm_angle_deg` poses the arms instead: hanging nearer the torso (down to
+// touching it) or further out, or raised above the shoulders, clear of the mirrors.
+// Metadata adds "height_mm", "arm_angle_deg", for "chest", "waist" and "hip"
+// {"girth_mm", "z_mm", "semi_axes_mm": [half width, half depth]}, and "truth": every
+// measurement host/measurement takes, by its definitions (docs/measurement.md), worked
+// out from the defining shapes (MannequinMeasurementTruth).
 struct MannequinParams {
   double height_mm = 1750.0;  // top of the head
   double chest_girth_mm = 960.0;
@@ -55,6 +60,10 @@ struct MannequinParams {
   double hip_girth_mm = 1000.0;
   Eigen::Vector2d center_mm{0.0, 0.0};
   double yaw_deg = 0.0;  // about +z, counter-clockwise seen from above
+  // Arm angle from hanging straight down, in the body's frontal plane: 4..60 hangs the
+  // arms, 100..150 raises them. Unset: the smallest A-pose angle keeping the arms 50 mm
+  // clear of the torso at the chest, waist and hip.
+  std::optional<double> arm_angle_deg;
 };
 
 // A mesh file; its vertices map to world as translation + R * (scale * p) with
@@ -71,7 +80,7 @@ struct MeshParams {
 //   {"type": "cuboid", "size_mm": [x, y, z], "center_mm": [x, y, z], "yaw_deg": a}
 //   {"type": "cylinder", "radius_mm": r, "height_mm": h, "bottom_mm": z, "center_mm": [x, y]}
 //   {"type": "mannequin", "height_mm": h, "chest_girth_mm": c, "waist_girth_mm": w,
-//    "hip_girth_mm": p, "center_mm": [x, y], "yaw_deg": a}
+//    "hip_girth_mm": p, "center_mm": [x, y], "yaw_deg": a, "arm_angle_deg": g}
 //   {"type": "mesh", "path": p, "scale": s, "translation_mm": [x, y, z],
 //    "rotation_deg": [rx, ry, rz]}
 //   {"type": "none"}
@@ -87,6 +96,24 @@ Subject MakeMannequin(const MannequinParams& params);
 // A missing, unreadable or empty file is a ConfigError naming the file.
 Subject LoadMeshSubject(const MeshParams& params);
 Subject MakeNoSubject();
+
+// A mannequin's measurements by host/measurement's definitions (docs/measurement.md),
+// from its defining shapes (ellipse sections, cones, cylinder, ellipsoid), not from its
+// mesh: {"stature_mm", "crotch_height_mm", "chest_girth_mm", "waist_girth_mm",
+// "hip_girth_mm", "thigh_girth_mm", "thigh_z_mm", "neck_girth_mm", "upper_arm_girth_mm",
+// "shoulder_breadth_mm", "arm_length_mm", "shoulder_points_mm", "wrist_points_mm"}
+// (points in world, left arm first). The arm values are null for raised arms, which have
+// no shoulder point by those definitions.
+nlohmann::json MannequinMeasurementTruth(const MannequinParams& params);
+
+// The exact tape girth of the mannequin's horizontal section at height z: the torso's
+// ellipse between the crotch and the arms' junction with the torso, each leg's circle
+// below the crotch. Nothing (nullopt) elsewhere, where the section mixes parts.
+struct GirthTruth {
+  std::string part;  // "torso", "left_leg" or "right_leg" (each leg has the same girth)
+  double girth_mm;
+};
+std::optional<GirthTruth> MannequinGirthTruth(const MannequinParams& params, double z_mm);
 
 // Exact perimeter of an ellipse with semi-axes a and b (arithmetic-geometric mean,
 // relative error ~1e-15).

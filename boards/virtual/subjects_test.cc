@@ -293,6 +293,63 @@ std::string BodyName(const ::testing::TestParamInfo<MannequinParams>& param) {
 INSTANTIATE_TEST_SUITE_P(Bodies, SubjectMannequinTest,
                          ::testing::Values(MannequinParams{}, Custom()), BodyName);
 
+// The truth's girths against the mesh, sliced by this file's own helpers: the stations'
+// ellipses, the thigh's circle, and the neck's.
+TEST_P(SubjectMannequinTest, MeasurementTruthMatchesTheMeshSections) {
+  const MannequinParams p = GetParam();
+  const Subject subject = MakeMannequin(p);
+  const nlohmann::json& truth = subject.metadata.at("truth");
+  EXPECT_DOUBLE_EQ(truth.at("stature_mm").get<double>(), p.height_mm);
+  for (const char* station : {"chest", "waist", "hip"}) {
+    SCOPED_TRACE(station);
+    const nlohmann::json& meta = subject.metadata.at(station);
+    EXPECT_NEAR(truth.at(std::string(station) + "_z_mm").get<double>(),
+                meta.at("z_mm").get<double>(), 0.05);
+    EXPECT_NEAR(truth.at(std::string(station) + "_girth_mm").get<double>(),
+                meta.at("girth_mm").get<double>(), 0.01);
+  }
+  // Each leg's section is a circle at the thigh height; the neck's at the neck's middle.
+  auto part = [&subject](const std::string& name) {
+    std::vector<int> triangles;
+    for (const nlohmann::json& entry : subject.metadata.at("parts")) {
+      if (entry.at("name") != name) continue;
+      const int first = entry.at("first_triangle"), count = entry.at("triangle_count");
+      for (int i = first; i < first + count; ++i) triangles.push_back(i);
+    }
+    return triangles;
+  };
+  for (const char* leg : {"left_leg", "right_leg"}) {
+    const std::vector<Segment> segments =
+        Slice(subject.mesh, part(leg), truth.at("thigh_z_mm").get<double>());
+    EXPECT_NEAR(Length(segments), truth.at("thigh_girth_mm").get<double>(), 0.05) << leg;
+  }
+  EXPECT_NEAR(Length(Slice(subject.mesh, part("neck"), 0.856 * p.height_mm)),
+              truth.at("neck_girth_mm").get<double>(), 0.05);
+  // The shoulder points lie on the body's top, above the arms' joints and apart by the
+  // shoulder breadth; arm length is shoulder to wrist.
+  const Eigen::Vector3d left(truth.at("shoulder_points_mm")[0][0].get<double>(),
+                             truth.at("shoulder_points_mm")[0][1].get<double>(),
+                             truth.at("shoulder_points_mm")[0][2].get<double>());
+  const Eigen::Vector3d wrist(truth.at("wrist_points_mm")[0][0].get<double>(),
+                              truth.at("wrist_points_mm")[0][1].get<double>(),
+                              truth.at("wrist_points_mm")[0][2].get<double>());
+  EXPECT_GT(left.z(), 0.80 * p.height_mm);
+  EXPECT_LT(left.z(), 0.86 * p.height_mm);
+  EXPECT_NEAR((left - wrist).norm(), truth.at("arm_length_mm").get<double>(), 1e-9);
+}
+
+TEST(SubjectMannequinPoseTest, ArmAngleIsParsedAndChecked) {
+  const Subject raised = Parse(R"({"type": "mannequin", "arm_angle_deg": 120})");
+  EXPECT_DOUBLE_EQ(raised.metadata.at("arm_angle_deg").get<double>(), 120.0);
+  EXPECT_TRUE(raised.metadata.at("truth").at("arm_length_mm").is_null());
+  EXPECT_GT(raised.mesh.Bounds().max().z(), 1750.0);  // hands above the head
+  const Subject near = Parse(R"({"type": "mannequin", "arm_angle_deg": 15})");
+  EXPECT_DOUBLE_EQ(near.metadata.at("params").at("arm_angle_deg").get<double>(), 15.0);
+  EXPECT_EQ(ParseError(R"({"type": "mannequin", "arm_angle_deg": 80})"),
+            "scene.json: subject.arm_angle_deg: must hang the arms (4..60) or raise them "
+            "(100..150)");
+}
+
 // ---- Cuboid --------------------------------------------------------------------------
 
 TEST(SubjectCuboidTest, CornersFacesAndTripod) {
@@ -403,7 +460,8 @@ TEST(SubjectParseTest, DefaultsFromTheDocumentation) {
   EXPECT_EQ(mannequin.metadata.at("params"),
             nlohmann::json::parse(R"({"height_mm": 1750.0, "chest_girth_mm": 960.0,
                                       "waist_girth_mm": 800.0, "hip_girth_mm": 1000.0,
-                                      "center_mm": [0.0, 0.0], "yaw_deg": 0.0})"));
+                                      "center_mm": [0.0, 0.0], "yaw_deg": 0.0,
+                                      "arm_angle_deg": null})"));
   EXPECT_NEAR(mannequin.mesh.Bounds().max().z(), 1750.0, 0.01);
 
   const Subject none = Parse(R"({"type": "none"})");

@@ -239,7 +239,11 @@ JointFit FitJointly(std::vector<PanelPoint>& points, const std::vector<double>& 
   double& a = fit.a;
   double& b = fit.b;
   double gate = options.gate_mm;
-  bool fit_tilt = options.fit_tilt;
+  bool fit_tilt = options.fit_tilt && !options.normal;
+  if (options.normal) {
+    a = options.normal->x() / options.normal->z();
+    b = options.normal->y() / options.normal->z();
+  }
   std::vector<int> seen(lasers, 0), panels_seen(panels, 0);
   auto moved = [&](const PanelPoint& p) -> Eigen::Vector3d {
     return p.point_in_world + p.point_per_offset_mm * fit.delta[p.panel];

@@ -83,6 +83,10 @@ struct LaserHeightOptions {
   double gate_mm = 10.0;
   double min_gate_mm = 0.3;
   bool fit_tilt = true;
+  // The laser planes' normal when it is known (the calibration's, measured over a whole
+  // sweep): then fit_tilt is ignored. One scan's panel points, partly hidden by the subject,
+  // fit a tilt that is a few hundredths of a degree off, ~0.1 mm across the cabinet.
+  std::optional<Eigen::Vector3d> normal;
   // Fit how far each panel stands behind its mirror. Two cameras at different heights see
   // a wrong offset move the same line up in one and down in the other; one camera alone
   // cannot tell a common offset from a scale of the whole sweep, so a panel whose offset

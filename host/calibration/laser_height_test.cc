@@ -186,6 +186,13 @@ TEST(LaserHeight, TiltRecovered) {
   level.fit_tilt = false;
   const LaserHeightResult untilted = EstimateLaserHeights(sweep.frames, CabinetOf(sweep), level);
   EXPECT_GT(untilted.residual_rms_mm, 2 * result.residual_rms_mm);
+  // The true normal given: kept exactly, the heights as good as with the tilt fitted.
+  LaserHeightOptions given;
+  given.normal = sweep.scene.lasers.normal;
+  const LaserHeightResult fixed = EstimateLaserHeights(sweep.frames, CabinetOf(sweep), given);
+  EXPECT_LT((fixed.fit.normal - sweep.scene.lasers.normal).norm(), 1e-12);
+  EXPECT_LT(CompareWithTruth(fixed, sweep).max, 0.1);
+  EXPECT_LT(fixed.residual_rms_mm, 1.2 * result.residual_rms_mm);
 }
 
 // The panels stand 9 mm (left) and 4.5 mm (right) behind their mirrors where the

@@ -7,7 +7,12 @@
 #include "host/cli/calibrate_intrinsics_command.h"
 #include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/device_command.h"
+#include "host/cli/measure_command.h"
+#include "host/cli/exit_status.h"
+#include "host/cli/mesh_command.h"
 #include "host/cli/peaks_command.h"
+#include "host/cli/process_command.h"
+#include "host/cli/reconstruct_command.h"
 #include "host/cli/sim_command.h"
 
 int main(int argc, char** argv) {
@@ -18,11 +23,19 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddCalibrateCommand(app);
   mirrorscan::cli::AddCalibrateIntrinsicsCommand(app);
   mirrorscan::cli::AddCalibrateLasersCommand(app);
+  mirrorscan::cli::AddReconstructCommand(app);
   mirrorscan::cli::AddDeviceCommands(app);
+  mirrorscan::cli::AddMeasureCommand(app);
+  mirrorscan::cli::AddMeshCommand(app);
+  mirrorscan::cli::AddProcessCommand(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help is a success; every other command-line error is a usage error.
+    return app.exit(e) == 0 ? 0 : mirrorscan::cli::kExitUsage;
+  } catch (const mirrorscan::cli::CommandExit& e) {
+    std::fprintf(stderr, "mirrorscan: %s\n", e.what());
+    return e.status();
   } catch (const std::exception& e) {
     std::fprintf(stderr, "mirrorscan: %s\n", e.what());
     return 1;

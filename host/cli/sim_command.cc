@@ -15,10 +15,14 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "boards/virtual/mesh_io.h"
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
+#include "boards/virtual/surface_samples.h"
+#include "common/config/calibration.h"
 #include "common/config/json_reader.h"
 #include "common/peaks/peaks.h"
+#include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "host/cli/peaks_command.h"
 
@@ -35,6 +39,7 @@ namespace {
 struct SimOptions {
   std::string scene_path;
   std::string out;
+  std::string truth_out;
   std::string camera;
   int frame = -1;
   double time = -1;
@@ -46,9 +51,13 @@ struct SimOptions {
   std::string contact_sheet;
   std::string peaks;  // .mscan archive of the sweep's peaks
   std::string board;  // peak extractor parameters from this board.json
+  // The calibration the archive is made with (as a device records the one it holds);
+  // default: the scene's true calibration, embedded whole.
+  std::string calibration;
   bool no_images = false;
   bool pgm = false;            // frames as binary PGM (what the replay camera plays) instead of PNG
   double distance_mm = 900.0;  // chessboard: from the camera
+  double spacing_mm = 4.0;     // `sim surface`: one truth sample per spacing² of area
 };
 
 // A view of the rendered pixels (no copy); valid while `image` lives.
@@ -246,17 +255,23 @@ void Scan(const SimOptions& o) {
     ScanFileWriterOptions writer_options;
     writer_options.overwrite = true;
     ScanFileWriter writer(o.peaks, writer_options);
-    writer.Begin(
-        {{"device", "virtual-cabinet"},
-         {"board", "virtual"},
-         {"source", "mirrorscan sim scan"},
-         {"scene", o.scene_path},
-         {"calibration", scene.TrueCalibration()},
-         {"cameras", cameras_json},
-         {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
-         // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
-         {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
-         {"start_steady_ns", 0}});
+    nlohmann::json header = {
+        {"device", "virtual-cabinet"},
+        {"board", "virtual"},
+        {"source", "mirrorscan sim scan"},
+        {"scene", o.scene_path},
+        {"cameras", cameras_json},
+        {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
+        // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
+        {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
+        {"start_steady_ns", 0}};
+    if (o.calibration.empty()) {
+      header["calibration"] = scene.TrueCalibration();
+    } else {
+      header["calibration_sha256"] = protocol::Sha256::HexOfFile(o.calibration);
+      header["calibration_hash"] = Calibration::Load(o.calibration).ContentHash();
+    }
+    writer.Begin(header);
     size_t peak_count = 0;
     for (const FrameRecord& record : records) {
       writer.AppendFrame(record);
@@ -356,6 +371,65 @@ void Chessboard(const SimOptions& o) {
   }
 }
 
+// The scene's subject as a mesh file, and its metadata (a mannequin's "truth" with it).
+void WriteSubject(const SimOptions& o) {
+  const Scene scene = Scene::Load(o.scene_path);
+  if (scene.subject.mesh.empty())
+    throw std::runtime_error(o.scene_path + ": the scene has no subject");
+  try {
+    virtual_cabinet::WriteMeshFile(scene.subject.mesh, o.out);
+  } catch (const virtual_cabinet::MeshIoError& e) {
+    throw std::runtime_error(e.what());
+  }
+  if (!o.truth_out.empty()) {
+    std::ofstream out(o.truth_out);
+    out << scene.subject.metadata.dump(2) << "\n";
+    if (!out) throw std::runtime_error(o.truth_out + ": cannot write");
+  }
+  const nlohmann::json summary = {{"mesh", o.out},
+                                  {"type", scene.subject.type},
+                                  {"triangles", scene.subject.mesh.triangles.size()}};
+  if (o.json) {
+    std::printf("%s\n", summary.dump(2).c_str());
+  } else {
+    std::printf("wrote the %s (%zu triangles) to %s\n", scene.subject.type.c_str(),
+                scene.subject.mesh.triangles.size(), o.out.c_str());
+  }
+}
+
+// The subject's true surface for scoring a mesh: the mesh itself and samples on it marked
+// with whether the cabinet can scan them.
+void Surface(const SimOptions& o) {
+  const Scene scene = LoadScene(o);
+  if (scene.subject.mesh.empty())
+    throw std::runtime_error(o.scene_path + ": the scene has no subject");
+  const Renderer renderer(scene);
+  fs::create_directories(o.out);
+  virtual_cabinet::WriteMeshFile(scene.subject.mesh, fs::path(o.out) / "subject.ply");
+  const auto samples = virtual_cabinet::SampleSubjectSurface(renderer, o.spacing_mm, scene.seed);
+  std::ofstream csv(fs::path(o.out) / "surface-samples.csv");
+  csv << "x_mm,y_mm,z_mm,nx,ny,nz,visible\n" << std::setprecision(10);
+  size_t visible = 0;
+  for (const auto& s : samples) {
+    csv << s.point_in_world.x() << ',' << s.point_in_world.y() << ',' << s.point_in_world.z() << ','
+        << s.normal.x() << ',' << s.normal.y() << ',' << s.normal.z() << ',' << (s.visible ? 1 : 0)
+        << '\n';
+    visible += s.visible ? 1 : 0;
+  }
+  if (!csv)
+    throw std::runtime_error("cannot write " + (fs::path(o.out) / "surface-samples.csv").string());
+  WriteJson(fs::path(o.out) / "scene.json", SceneInfo(scene));
+  if (o.json) {
+    std::printf("%s\n",
+                nlohmann::json({{"samples", samples.size()}, {"visible", visible}, {"out", o.out}})
+                    .dump(2)
+                    .c_str());
+  } else {
+    std::printf("%zu surface samples, %zu visible to the cabinet, in %s\n", samples.size(), visible,
+                o.out.c_str());
+  }
+}
+
 }  // namespace
 
 void AddSimCommands(CLI::App& app) {
@@ -402,6 +476,10 @@ void AddSimCommands(CLI::App& app) {
   scan->add_option("--board", options->board,
                    "Peak extractor parameters from this board.json (its \"peaks\" object)")
       ->check(CLI::ExistingFile);
+  scan->add_option("--calibration", options->calibration,
+                   "With --peaks: record this calibration in the archive's header (its SHA-256 "
+                   "and content hash, as the device does) instead of the scene's true one")
+      ->check(CLI::ExistingFile);
   scan->add_flag("--no-images", options->no_images, "Do not write PNG frames (e.g. with --peaks)");
   scan->add_flag("--pgm", options->pgm,
                  "Write frames as 8-bit binary PGM (P5), which the firmware's replay camera plays");
@@ -426,6 +504,30 @@ void AddSimCommands(CLI::App& app) {
   chessboard->add_flag("--no-noise", options->no_noise, "Noise-free sensor");
   chessboard->add_flag("--json", options->json, "Machine-readable output");
   chessboard->callback([options] { Chessboard(*options); });
+
+  auto* subject = sim->add_subcommand(
+      "subject", "Write the scene's exact subject surface as a mesh, and its truth as JSON");
+  subject->add_option("--scene", options->scene_path, "Scene file")
+      ->required()
+      ->check(CLI::ExistingFile);
+  subject->add_option("--out", options->out, "Mesh file (.ply, .obj or .stl)")->required();
+  subject->add_option("--truth", options->truth_out,
+                      "Write the subject's metadata here (a mannequin's measurement truth)");
+  subject->add_flag("--json", options->json, "Machine-readable output");
+  subject->callback([options] { WriteSubject(*options); });
+  auto* surface = sim->add_subcommand(
+      "surface",
+      "The subject's true surface (subject.ply) and samples on it marked visible when a camera "
+      "view sees them and a laser reaches them (surface-samples.csv), for scoring a mesh");
+  surface->add_option("--scene", options->scene_path, "Scene file")
+      ->required()
+      ->check(CLI::ExistingFile);
+  surface->add_option("--out", options->out, "Output directory")->required();
+  surface->add_option("--spacing", options->spacing_mm, "About one sample per spacing² (mm)")
+      ->check(CLI::Range(0.5, 100.0))
+      ->capture_default_str();
+  surface->add_flag("--json", options->json, "Machine-readable output");
+  surface->callback([options] { Surface(*options); });
 }
 
 }  // namespace mirrorscan::cli

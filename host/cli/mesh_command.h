@@ -1,0 +1,30 @@
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "host/meshing/meshing.h"
+
+namespace mirrorscan::cli {
+
+// `mirrorscan mesh points.ply --out mesh.ply`: a Poisson surface of an oriented cloud.
+void AddMeshCommand(CLI::App& app);
+
+// The meshing flags `mesh` and `process` share (--voxel, --cell, --depth, --threads,
+// --trim-distance, --watertight).
+void AddMeshingFlags(CLI::App* command, meshing::MeshingOptions* options);
+// --formats: "ply", "obj", "stl" in any comma-separated combination; throws CommandExit
+// (usage) on anything else.
+std::vector<std::string> ParseFormats(const std::string& formats);
+// Writes `stem`.<format> for each format; returns the files written.
+std::vector<std::filesystem::path> WriteMeshFormats(const meshing::Mesh& mesh,
+                                                    const std::filesystem::path& ply_path,
+                                                    const std::vector<std::string>& formats);
+// Mesh statistics, holes, trimming and timings for summaries.
+nlohmann::json MeshingJson(const meshing::MeshingResult& result);
+
+}  // namespace mirrorscan::cli

@@ -1,0 +1,115 @@
+#include "host/cli/reconstruct_command.h"
+
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "common/config/calibration.h"
+#include "common/protocol/sha256.h"
+#include "common/scan_format/scan_format.h"
+#include "host/reconstruction/reconstruct.h"
+
+namespace mirrorscan::cli {
+
+namespace {
+
+struct ReconstructCliOptions {
+  std::string scan;
+  std::string calibration;
+  std::string out;
+  std::string board;
+  bool json = false;
+  bool mismatch_ok = false;
+  bool readback = false;
+  bool no_smooth = false;
+  bool no_outliers = false;
+  bool keep_stripe_ends = false;
+  bool icp = false;
+  double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
+  double min_angle_deg = -1;
+};
+
+void Run(const ReconstructCliOptions& o) {
+  const Calibration calibration = Calibration::Load(o.calibration);
+  const ScanArchive archive = ReadScanFile(o.scan);
+  if (!archive.report.complete)
+    std::fprintf(stderr, "reconstruct: %s: %s\n", o.scan.c_str(), archive.report.message.c_str());
+
+  reconstruction::ReconstructOptions options;
+  if (!o.board.empty()) options.cylinder = reconstruction::BoundingCylinder::FromBoard(o.board);
+  if (o.radius_mm > 0) options.cylinder.radius_mm = o.radius_mm;
+  if (o.bottom_mm > -1e9) options.cylinder.bottom_mm = o.bottom_mm;
+  if (o.top_mm > -1e9) options.cylinder.top_mm = o.top_mm;
+  if (options.cylinder.top_mm <= options.cylinder.bottom_mm)
+    throw std::runtime_error("--cylinder-top must be above --cylinder-bottom");
+  if (o.min_angle_deg >= 0) options.min_ray_plane_angle_deg = o.min_angle_deg;
+  options.allow_calibration_mismatch = o.mismatch_ok;
+  options.calibration_file_sha256 = protocol::Sha256::HexOfFile(o.calibration);
+  options.laser_height_from_panels = !o.readback;
+  options.smooth_3x3 = !o.no_smooth;
+  options.remove_outliers = !o.no_outliers;
+  options.drop_stripe_ends = !o.keep_stripe_ends;
+  options.icp = o.icp;
+  std::string last_stage;
+  options.progress = [&](const std::string& stage, double fraction) {
+    if (o.json) return;
+    if (stage != last_stage && !last_stage.empty()) std::fprintf(stderr, "\n");
+    last_stage = stage;
+    std::fprintf(stderr, "\rreconstruct: %s %3.0f%%", stage.c_str(), 100.0 * fraction);
+    if (stage == "done") std::fprintf(stderr, "\n");
+  };
+  reconstruction::Reconstruction result;
+  try {
+    result = reconstruction::Reconstruct(archive, calibration, options);
+  } catch (const std::exception&) {
+    if (!last_stage.empty() && last_stage != "done") std::fprintf(stderr, "\n");
+    throw;
+  }
+  reconstruction::WritePly(o.out, result.cloud);
+  for (const std::string& w : result.summary.warnings)
+    std::fprintf(stderr, "reconstruct: warning: %s\n", w.c_str());
+  if (o.json) {
+    nlohmann::json json = reconstruction::SummaryJson(result.summary);
+    json["out"] = o.out;
+    std::printf("%s\n", json.dump(2).c_str());
+  } else {
+    std::printf("%s", reconstruction::SummaryText(result.summary).c_str());
+    std::printf("wrote %s\n", o.out.c_str());
+  }
+}
+
+}  // namespace
+
+void AddReconstructCommand(CLI::App& app) {
+  auto o = std::make_shared<ReconstructCliOptions>();
+  auto* cmd = app.add_subcommand(
+      "reconstruct",
+      "Every laser peak of a scan to a 3D point (binary PLY with normals, camera, view, laser, "
+      "frame, column, confidence); a summary on stdout");
+  cmd->add_option("SCAN", o->scan, "Scan archive (.mscan)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--calibration", o->calibration, "calibration.json of this cabinet")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", o->out, "points.ply to write")->required();
+  cmd->add_option("--board", o->board,
+                  "board.json whose reconstruction.bounding_cylinder to use")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--cylinder-radius", o->radius_mm, "Bounding cylinder radius, mm (default 450)");
+  cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 20)");
+  cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
+  cmd->add_option("--min-angle", o->min_angle_deg,
+                  "Drop points whose ray meets the laser plane flatter than this, degrees "
+                  "(default 8)");
+  cmd->add_flag("--calibration-mismatch-ok", o->mismatch_ok,
+                "Use the calibration even if the archive was made with another one");
+  cmd->add_flag("--readback", o->readback,
+                "Laser heights from the slide readback, not from the panel lines");
+  cmd->add_flag("--no-smooth", o->no_smooth, "No 3x3 averaging in (column, frame)");
+  cmd->add_flag("--no-outliers", o->no_outliers, "Keep statistical outliers");
+  cmd->add_flag("--keep-stripe-ends", o->keep_stripe_ends, "Keep the last columns of stripes");
+  cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");
+  cmd->add_flag("--json", o->json, "Print the summary as JSON (no progress)");
+  cmd->callback([o] { Run(*o); });
+}
+
+}  // namespace mirrorscan::cli

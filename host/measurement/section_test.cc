@@ -1,0 +1,98 @@
+#include "host/measurement/section.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+namespace mirrorscan::measurement {
+namespace {
+
+// An L-shaped prism from z = 0 to 50 (outward normals): its outline is 400 mm, and a
+// tape round it spans the hollow: 100 + 40 + 60 sqrt 2 + 40 + 100 mm.
+SurfaceMesh LPrism() {
+  const std::vector<Eigen::Vector2d> outline = {{0, 0},   {100, 0},  {100, 40},
+                                                {40, 40}, {40, 100}, {0, 100}};
+  SurfaceMesh mesh;
+  const int n = static_cast<int>(outline.size());
+  for (double z : {0.0, 50.0}) {
+    for (const Eigen::Vector2d& p : outline) mesh.vertices.emplace_back(p.x(), p.y(), z);
+  }
+  for (int i = 0; i < n; ++i) {
+    const int j = (i + 1) % n;
+    mesh.triangles.emplace_back(i, j, n + j);
+    mesh.triangles.emplace_back(i, n + j, n + i);
+  }
+  for (int i = 1; i + 1 < n; ++i) {  // fans from corner 0: inside the L for this outline
+    mesh.triangles.emplace_back(0, i + 1, i);
+    mesh.triangles.emplace_back(n, n + i, n + i + 1);
+  }
+  return mesh;
+}
+
+TEST(SectionTest, TapeSpansTheHollowAndTheContourFollowsIt) {
+  const Slicer slicer(LPrism());
+  const Section s = slicer.AtHeight(25.0);
+  ASSERT_EQ(s.loops.size(), 1u);
+  EXPECT_TRUE(s.loops[0].closed);
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_NEAR(s.parts[0].contour_mm, 400.0, 1e-9);
+  EXPECT_NEAR(s.parts[0].tape_mm, 280.0 + 60.0 * std::sqrt(2.0), 1e-3);
+  EXPECT_NEAR(s.parts[0].area_mm2, 100.0 * 100.0 - 0.5 * 60.0 * 60.0, 0.5);
+  EXPECT_FALSE(s.parts[0].has_hole);
+}
+
+TEST(SectionTest, AVertexOnThePlaneCountsAsAbove) {
+  // The plane an instant lower: at the top face the prism is still cut, at the bottom not.
+  const Slicer slicer(LPrism());
+  EXPECT_EQ(slicer.AtHeight(50.0).parts.size(), 1u);
+  EXPECT_TRUE(slicer.AtHeight(0.0).parts.empty());
+}
+
+TEST(SectionTest, AMissingFaceLeavesAnOpenChainAndMarksAHole) {
+  SurfaceMesh mesh = LPrism();
+  mesh.triangles.erase(mesh.triangles.begin(), mesh.triangles.begin() + 2);  // side 0-1
+  const Slicer slicer(mesh);
+  const Section s = slicer.AtHeight(25.0);
+  ASSERT_EQ(s.loops.size(), 1u);
+  EXPECT_FALSE(s.loops[0].closed);
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_TRUE(s.parts[0].has_hole);
+}
+
+TEST(SectionTest, TiltedPlaneThroughACube) {
+  // The plane x + z = 95 through the L prism's lower bar cuts a rectangle 40 wide (y 0..40)
+  // and 50 sqrt 2 long: perimeter 80 + 100 sqrt 2.
+  const Slicer slicer(LPrism());
+  const Section s = slicer.ByPlane(Eigen::Vector3d(95, 20, 0), Eigen::Vector3d(1, 0, 1));
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_NEAR(s.parts[0].tape_mm, 80.0 + 100.0 * std::sqrt(2.0), 1e-3);
+}
+
+TEST(SectionTest, LineCrossingsSayWhereTheLineEntersAndLeaves) {
+  const SurfaceMesh mesh = LPrism();
+  const std::vector<LineCrossing> c =
+      CrossLine(mesh, Eigen::Vector3d(50, 10, 25), Eigen::Vector3d(1, 0, 0));
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_NEAR(c[0].t, -50.0, 1e-9);
+  EXPECT_EQ(c[0].sign, -1);  // enters
+  EXPECT_NEAR(c[1].t, 50.0, 1e-9);
+  EXPECT_EQ(c[1].sign, +1);  // leaves
+}
+
+TEST(SectionTest, WeldingJoinsTheCornersOfSeparateTriangles) {
+  SurfaceMesh soup;
+  const SurfaceMesh mesh = LPrism();
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const int base = static_cast<int>(soup.vertices.size());
+    for (int k = 0; k < 3; ++k) soup.vertices.push_back(mesh.vertices[t[k]]);
+    soup.triangles.emplace_back(base, base + 1, base + 2);
+  }
+  const Slicer slicer(WeldVertices(soup));
+  EXPECT_EQ(slicer.mesh().vertices.size(), mesh.vertices.size());
+  const Section s = slicer.AtHeight(10.0);
+  ASSERT_EQ(s.loops.size(), 1u);
+  EXPECT_TRUE(s.loops[0].closed);
+}
+
+}  // namespace
+}  // namespace mirrorscan::measurement

@@ -1,0 +1,1176 @@
+#include "host/reconstruction/reconstruct.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <optional>
+#include <tuple>
+
+#include <Eigen/Geometry>
+
+#include "common/config/json_reader.h"
+#include "host/calibration/laser_height.h"
+#include "host/reconstruction/icp.h"
+
+namespace mirrorscan::reconstruction {
+
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr int kMaxLasers = 3;
+constexpr int kViews = 5;
+// A (view, laser) pair as one small integer, for votes.
+constexpr int kKeys = kViews * kMaxLasers;
+// Neighbours of one hypothesis closer than this in 3D belong to one surface.
+constexpr double kLinkColumnMm = 6.0;
+constexpr double kLinkFrameMm = 25.0;
+constexpr double kSmoothMaxMm = 10.0;
+
+std::string Format(const char* format, auto... args) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof(buffer), format, args...);
+  return buffer;
+}
+
+int Key(PointView view, int laser) { return static_cast<int>(view) * kMaxLasers + laser; }
+
+// One way a peak could have come about: seen along `view`, lit by `laser`.
+struct Hypothesis {
+  Eigen::Vector3d point;
+  Eigen::Vector3d last_direction;  // the ray's last segment (towards the point)
+  float sin_angle = 0;             // ray against the laser plane
+  uint8_t key = 0;
+};
+
+enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote };
+
+struct PeakState {
+  uint32_t frame = 0;  // archive frame index
+  uint16_t u = 0;
+  float v = 0;
+  float score = 0;
+  uint32_t first_hypothesis = 0;
+  uint8_t hypotheses = 0;
+  uint8_t region = 0;  // the calibration view region: 0 centre, 1 left, 2 right
+  bool panel = false;
+  bool no_ray = false;
+  int16_t chosen = -1;  // index among its hypotheses
+  Rule rule = Rule::kNone;
+};
+
+struct UnionFind {
+  std::vector<uint32_t> parent;
+  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  uint32_t Find(uint32_t x) {
+    while (parent[x] != x) {
+      parent[x] = parent[parent[x]];
+      x = parent[x];
+    }
+    return x;
+  }
+  void Join(uint32_t a, uint32_t b) {
+    a = Find(a);
+    b = Find(b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+};
+
+class Stopwatch {
+ public:
+  explicit Stopwatch(ReconstructSummary* summary) : summary_(summary) {}
+  void Lap(const std::string& stage) {
+    const auto now = std::chrono::steady_clock::now();
+    summary_->timings_s.emplace_back(stage, std::chrono::duration<double>(now - last_).count());
+    last_ = now;
+  }
+
+ private:
+  ReconstructSummary* summary_;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+const nlohmann::json* HeaderValue(const nlohmann::json& header, const char* key) {
+  if (!header.is_object()) return nullptr;
+  const auto it = header.find(key);
+  return it == header.end() ? nullptr : &*it;
+}
+
+// The archive names its calibration by the file's SHA-256 (the device), by content hash,
+// or by carrying it whole (the simulator); every one given must match.
+void CheckCalibration(const ScanArchive& archive, const Calibration& calibration,
+                      const ReconstructOptions& options, ReconstructSummary* summary) {
+  std::vector<std::string> mismatches;
+  bool named = false;
+  if (const auto* sha = HeaderValue(archive.header, "calibration_sha256"); sha && sha->is_string()) {
+    named = true;
+    if (!options.calibration_file_sha256.empty() &&
+        sha->get<std::string>() != options.calibration_file_sha256) {
+      mismatches.push_back("the archive's calibration_sha256 " + sha->get<std::string>() +
+                           " is not this file's " + options.calibration_file_sha256);
+    }
+  }
+  if (const auto* hash = HeaderValue(archive.header, "calibration_hash");
+      hash && hash->is_string()) {
+    named = true;
+    if (hash->get<std::string>() != calibration.ContentHash()) {
+      mismatches.push_back("the archive's calibration_hash " + hash->get<std::string>() +
+                           " is not this calibration's " + calibration.ContentHash());
+    }
+  }
+  if (const auto* embedded = HeaderValue(archive.header, "calibration");
+      embedded && embedded->is_object()) {
+    named = true;
+    std::string hash;
+    try {
+      hash = Calibration::Parse(*embedded, "the archive's header").ContentHash();
+    } catch (const std::exception& e) {
+      hash = std::string("unreadable (") + e.what() + ")";
+    }
+    if (hash != calibration.ContentHash()) {
+      mismatches.push_back("the archive was made with calibration " + hash + ", this one is " +
+                           calibration.ContentHash());
+    }
+  }
+  if (!named) summary->warnings.push_back("the archive does not say which calibration it was made with");
+  if (mismatches.empty()) return;
+  std::string text = mismatches.front();
+  for (size_t i = 1; i < mismatches.size(); ++i) text += "; " + mismatches[i];
+  if (!options.allow_calibration_mismatch) {
+    throw CalibrationMismatchError("calibration mismatch: " + text +
+                                   " (another cabinet or an older calibration; "
+                                   "--calibration-mismatch-ok to use it anyway)");
+  }
+  summary->warnings.push_back("calibration mismatch accepted: " + text);
+}
+
+// The archive's cameras by FrameRecord::camera, matched to the calibration's by name.
+std::vector<const CalibrationCamera*> CamerasOf(const ScanArchive& archive,
+                                                const Calibration& calibration) {
+  std::vector<const CalibrationCamera*> cameras;
+  const auto* listed = HeaderValue(archive.header, "cameras");
+  if (!listed || !listed->is_array()) {
+    for (const CalibrationCamera& c : calibration.cameras) cameras.push_back(&c);
+    return cameras;
+  }
+  for (const nlohmann::json& entry : *listed) {
+    const std::string name = entry.is_object() && entry.contains("name") && entry["name"].is_string()
+                                 ? entry["name"].get<std::string>()
+                                 : "";
+    cameras.push_back(calibration.FindCamera(name));
+  }
+  // A camera the archive lists but never used does not need calibrating.
+  std::vector<bool> used(cameras.size(), false);
+  for (const FrameRecord& frame : archive.frames) {
+    if (frame.camera >= cameras.size()) {
+      throw ReconstructError(Format("frame %u names camera %d; the archive lists %zu camera(s)",
+                                    frame.sequence, frame.camera, cameras.size()));
+    }
+    used[frame.camera] = true;
+  }
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    if (used[i] && !cameras[i]) {
+      throw ReconstructError("the archive's camera \"" +
+                             (*listed)[i].value("name", std::string("?")) +
+                             "\" is not in the calibration");
+    }
+  }
+  return cameras;
+}
+
+// Per camera: the region of each mirror. A camera without a region for a mirror would
+// take that mirror's image for the subject itself.
+std::vector<std::array<const CalibrationView*, 2>> MirrorViewsOf(
+    const std::vector<const CalibrationCamera*>& cameras, const Calibration& calibration) {
+  std::vector<std::array<const CalibrationView*, 2>> views(cameras.size(), {nullptr, nullptr});
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    if (!cameras[c]) continue;
+    for (int m = 0; m < 2; ++m) {
+      for (const CalibrationView& view : cameras[c]->views) {
+        if (view.mirror && *view.mirror == calibration.mirrors[m].name) views[c][m] = &view;
+      }
+      if (!views[c][m]) {
+        throw ReconstructError("calibration: camera \"" + cameras[c]->name +
+                               "\" has no view for the " + calibration.mirrors[m].name +
+                               " mirror, so its image there cannot be told from the subject");
+      }
+    }
+  }
+  return views;
+}
+
+struct LaserPlanes {
+  std::vector<std::array<Plane, kMaxLasers>> per_frame;  // by archive frame index
+  std::vector<bool> valid;
+  int count = 1;
+};
+
+int LaserCountOf(const ScanArchive& archive, const Calibration& calibration) {
+  int count = calibration.lasers ? calibration.lasers->count : 1;
+  if (const auto* lasers = HeaderValue(archive.header, "lasers");
+      lasers && lasers->is_object() && lasers->contains("count") &&
+      (*lasers)["count"].is_number_integer()) {
+    count = (*lasers)["count"].get<int>();
+  }
+  if (count < 1 || count > kMaxLasers)
+    throw ReconstructError(Format("the archive says %d lasers; 1 to %d are supported", count,
+                                  kMaxLasers));
+  return count;
+}
+
+// Laser planes of every frame: the panel lines' fit, or the slide readback where that is
+// impossible.
+LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibration,
+                           const std::vector<const CalibrationCamera*>& cameras,
+                           const ReconstructOptions& options, std::vector<PeakState>* peaks,
+                           const std::vector<uint32_t>& frame_first, ReconstructSummary* summary) {
+  LaserPlanes planes;
+  planes.count = LaserCountOf(archive, calibration);
+  planes.per_frame.resize(archive.frames.size());
+  planes.valid.assign(archive.frames.size(), false);
+  LaserHeightSummary& s = summary->laser_height;
+  const double readback_offset =
+      calibration.lasers ? calibration.lasers->readback_offset_mm.value_or(0.0) : 0.0;
+
+  std::string reason;
+  if (options.laser_height_from_panels) {
+    try {
+      LaserCabinet cabinet =
+          LaserCabinetFromCalibration(calibration, "calibration", options.panel_margin_mm);
+      // By FrameRecord::camera; a listed camera that took no frame stands in as any other.
+      cabinet.cameras.clear();
+      const auto any = std::find_if(cameras.begin(), cameras.end(),
+                                    [](const CalibrationCamera* c) { return c != nullptr; });
+      if (any == cameras.end()) throw ReconstructError("the archive uses no calibrated camera");
+      for (const CalibrationCamera* c : cameras)
+        cabinet.cameras.push_back(c ? c->camera : (*any)->camera);
+      cabinet.laser_count = planes.count;
+      if (const auto* lasers = HeaderValue(archive.header, "lasers");
+          lasers && lasers->is_object() && lasers->contains("spacing_mm") &&
+          (*lasers)["spacing_mm"].is_number())
+        cabinet.nominal_spacing_mm = (*lasers)["spacing_mm"].get<double>();
+      if (const auto* slide = HeaderValue(archive.header, "slide");
+          slide && slide->is_object() && slide->contains("speed_mm_s") &&
+          (*slide)["speed_mm_s"].is_number())
+        cabinet.nominal_speed_mm_s = (*slide)["speed_mm_s"].get<double>();
+      LaserHeightOptions lo;
+      if (const auto* start = HeaderValue(archive.header, "start_steady_ns");
+          start && start->is_number_integer())
+        lo.time_origin_ns = start->get<int64_t>();
+      lo.readback_offset_mm = readback_offset;
+      lo.readback_tolerance_mm = options.readback_tolerance_mm;
+      // The calibration measured the panels; one scan's sweep is no better at it.
+      lo.fit_panel_offsets = false;
+      if (calibration.lasers) lo.normal = calibration.lasers->normal;
+      const LaserHeightResult result = EstimateLaserHeights(archive.frames, cabinet, lo);
+      const LaserFit& fit = result.fit;
+      for (size_t f = 0; f < archive.frames.size(); ++f) {
+        const double t = fit.TimeS(archive.frames[f].timestamp_ns);
+        for (int k = 0; k < planes.count; ++k) planes.per_frame[f][k] = fit.PlaneAt(k, t);
+        planes.valid[f] = true;
+      }
+      s.source = "panels";
+      s.speed_mm_s = fit.speed_mm_s;
+      s.height_at_t0_mm = fit.height_at_t0_mm;
+      s.offsets_mm = fit.offset_mm;
+      s.normal = fit.normal;
+      s.panel_residual_rms_mm = result.residual_rms_mm;
+      s.panel_points = result.inliers;
+      if (result.readback) {
+        s.readback_frames = result.readback->frames;
+        s.readback_offset_mm = result.readback->offset_mm;
+        s.readback_max_error_mm = result.readback->max_error_mm;
+        s.readback_frames_off = result.readback->frames_off;
+      }
+      for (const std::string& w : result.warnings) summary->warnings.push_back("laser height: " + w);
+      // The panels' own peaks are laser-height data, not the subject.
+      for (const PanelPoint& p : result.points) {
+        if (p.laser < 0) continue;
+        const auto begin = peaks->begin() + frame_first[p.frame];
+        const auto end = peaks->begin() + frame_first[p.frame + 1];
+        auto it = std::lower_bound(begin, end, p.u,
+                                   [](const PeakState& a, uint16_t u) { return a.u < u; });
+        for (; it != end && it->u == p.u; ++it) {
+          if (it->v == p.v) it->panel = true;
+        }
+      }
+      return planes;
+    } catch (const LaserHeightError& e) {
+      reason = e.what();
+    } catch (const ConfigError& e) {
+      reason = e.what();
+    }
+  } else {
+    reason = "panels not used (option)";
+  }
+
+  // Readback: laser 0 at readback − offset, the others at the calibration's offsets.
+  if (!calibration.lasers) {
+    throw ReconstructError("no laser heights: the panels gave none (" + reason +
+                           ") and the calibration has no lasers for the readback");
+  }
+  const CalibrationLasers& lasers = *calibration.lasers;
+  if (planes.count > 1 && lasers.offsets_mm.size() < static_cast<size_t>(planes.count) &&
+      lasers.count < planes.count) {
+    summary->warnings.push_back("laser offsets above laser 0 assumed at the nominal spacing");
+  }
+  size_t with_readback = 0;
+  for (size_t f = 0; f < archive.frames.size(); ++f) {
+    const double readback = archive.frames[f].slide_position_mm;
+    if (!std::isfinite(readback)) continue;
+    const double h0 = readback - readback_offset;
+    for (int k = 0; k < planes.count; ++k) {
+      const double offset = k < static_cast<int>(lasers.offsets_mm.size())
+                                ? lasers.offsets_mm[k]
+                                : k * lasers.spacing_mm;
+      planes.per_frame[f][k] = Plane{lasers.normal, -(h0 + offset)};
+    }
+    planes.valid[f] = true;
+    ++with_readback;
+  }
+  if (with_readback == 0) {
+    throw ReconstructError("no laser heights: the panels gave none (" + reason +
+                           ") and no frame has a slide readback");
+  }
+  s.source = "readback";
+  s.reason = reason;
+  s.normal = lasers.normal;
+  s.readback_frames = with_readback;
+  if (!calibration.lasers->readback_offset_mm) {
+    summary->warnings.push_back(
+        "laser heights from the slide readback with no measured readback offset (0 assumed)");
+  }
+  summary->warnings.push_back("laser heights from the slide readback: " + reason);
+  return planes;
+}
+
+struct Geometry {
+  std::vector<const CalibrationCamera*> cameras;
+  std::vector<std::array<const CalibrationView*, 2>> mirror_views;
+  std::array<Plane, 2> mirrors;
+  std::vector<PlanarRectangle> mirror_rectangles;  // empty without corners
+};
+
+// Every (view, laser) this peak could be, inside the bounding cylinder.
+void Hypothesize(const Geometry& g, const FrameRecord& frame,
+                 const std::array<Plane, kMaxLasers>& planes, int laser_count,
+                 const BoundingCylinder& cylinder, PeakState* peak,
+                 std::vector<Hypothesis>* out) {
+  const CalibrationCamera& camera = *g.cameras[frame.camera];
+  const Eigen::Vector2d pixel(peak->u, peak->v);
+  peak->first_hypothesis = static_cast<uint32_t>(out->size());
+  const auto ray = camera.camera.RayThroughPixel(pixel);
+  if (!ray) {
+    peak->no_ray = true;
+    return;
+  }
+  peak->region = 0;
+  for (int m = 0; m < 2; ++m) {
+    if (g.mirror_views[frame.camera][m]->Contains(pixel)) {
+      peak->region = static_cast<uint8_t>(m + 1);
+      break;
+    }
+  }
+  // Try each laser on one ray segment [0, t_max).
+  auto add = [&](const Ray3d& segment, double t_max, PointView view) {
+    for (int k = 0; k < laser_count; ++k) {
+      const auto t = IntersectRayPlane(segment, planes[k], 1.0);
+      if (!t || *t >= t_max) continue;
+      const Eigen::Vector3d point = segment.At(*t);
+      if (!cylinder.Contains(point)) continue;
+      Hypothesis h;
+      h.point = point;
+      h.last_direction = segment.direction;
+      h.sin_angle = static_cast<float>(std::abs(planes[k].normal.dot(segment.direction)));
+      h.key = static_cast<uint8_t>(Key(view, k));
+      out->push_back(h);
+    }
+  };
+  constexpr double kFar = 1e7;
+  if (peak->region == 0) {
+    add(*ray, kFar, PointView::kCenter);
+  } else {
+    const int a = peak->region - 1;
+    const int b = 1 - a;
+    const auto t_a = IntersectRayPlane(*ray, g.mirrors[a], 0.0);
+    if (t_a) {
+      // Something in front of the mirror (an arm reaching into its region).
+      add(*ray, *t_a, PointView::kCenter);
+      const Ray3d once{ray->At(*t_a), g.mirrors[a].ReflectDirection(ray->direction)};
+      std::optional<double> t_b;
+      if (!g.mirror_rectangles.empty()) t_b = g.mirror_rectangles[b].Intersect(once);
+      add(once, t_b.value_or(kFar), a == 0 ? PointView::kLeft : PointView::kRight);
+      if (t_b) {
+        const Ray3d twice{once.At(*t_b), g.mirrors[b].ReflectDirection(once.direction)};
+        add(twice, kFar, a == 0 ? PointView::kLeftRight : PointView::kRightLeft);
+      }
+    }
+  }
+  peak->hypotheses = static_cast<uint8_t>(out->size() - peak->first_hypothesis);
+}
+
+// The voxels of the bounding cylinder's box near a point that was decided alone: the
+// subject's volume as the scan itself carves it. A wrong laser's hypothesis lies on the ray
+// behind the surface the ray really met, where nothing was seen.
+class Occupancy {
+ public:
+  explicit Occupancy(const BoundingCylinder& c) {
+    origin_ = Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm,
+                              c.bottom_mm);
+    size_ = ((Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm)) /
+             kVoxelMm)
+                .array()
+                .ceil()
+                .cast<int>() +
+            1;
+    cells_.assign(static_cast<size_t>(size_.x()) * size_.y() * size_.z(), 0);
+  }
+  // Marks the point's voxel and its 26 neighbours.
+  void Add(const Eigen::Vector3d& point) {
+    const Eigen::Vector3i at = Cell(point);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const Eigen::Vector3i c = at + Eigen::Vector3i(dx, dy, dz);
+          if ((c.array() >= 0).all() && (c.array() < size_.array()).all()) cells_[Index(c)] = 1;
+        }
+  }
+  bool Contains(const Eigen::Vector3d& point) const {
+    const Eigen::Vector3i c = Cell(point);
+    return (c.array() >= 0).all() && (c.array() < size_.array()).all() && cells_[Index(c)];
+  }
+
+ private:
+  static constexpr double kVoxelMm = 10.0;
+  Eigen::Vector3i Cell(const Eigen::Vector3d& point) const {
+    return ((point - origin_) / kVoxelMm).array().floor().cast<int>();
+  }
+  size_t Index(const Eigen::Vector3i& c) const {
+    return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
+  }
+  Eigen::Vector3d origin_;
+  Eigen::Vector3i size_;
+  std::vector<uint8_t> cells_;
+};
+
+// Peaks the cylinder left ambiguous with exactly one hypothesis in the carved volume.
+void DecideByVolume(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& hyp,
+                    const BoundingCylinder& cylinder) {
+  Occupancy occupied(cylinder);
+  for (const PeakState& p : *peaks)
+    if (p.rule == Rule::kCylinder) occupied.Add(hyp[p.first_hypothesis].point);
+  for (PeakState& p : *peaks) {
+    if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
+    int found = -1, count = 0;
+    for (int h = 0; h < p.hypotheses; ++h) {
+      if (occupied.Contains(hyp[p.first_hypothesis + h].point)) {
+        found = h;
+        ++count;
+      }
+    }
+    if (count == 1) {
+      p.chosen = static_cast<int16_t>(found);
+      p.rule = Rule::kVolume;
+    }
+  }
+}
+
+// A common hypothesis of two peaks whose points are within max_mm.
+bool Consistent(const std::vector<Hypothesis>& hyp, const PeakState& a, const PeakState& b,
+                double max_mm) {
+  const double max2 = max_mm * max_mm;
+  for (int i = 0; i < a.hypotheses; ++i) {
+    const Hypothesis& ha = hyp[a.first_hypothesis + i];
+    for (int j = 0; j < b.hypotheses; ++j) {
+      const Hypothesis& hb = hyp[b.first_hypothesis + j];
+      if (ha.key == hb.key && (ha.point - hb.point).squaredNorm() < max2) return true;
+    }
+  }
+  return false;
+}
+
+int FindHypothesis(const std::vector<Hypothesis>& hyp, const PeakState& p, int key) {
+  for (int i = 0; i < p.hypotheses; ++i) {
+    if (hyp[p.first_hypothesis + i].key == key) return i;
+  }
+  return -1;
+}
+
+// The archive's peaks in frame order, each frame's sorted by column then row.
+struct PeakTable {
+  std::vector<PeakState> peaks;
+  std::vector<uint32_t> frame_first;  // per archive frame, and one past the end
+  // Per archive frame: the next frame of the same camera (or -1).
+  std::vector<int32_t> next_frame;
+
+  std::pair<uint32_t, uint32_t> Column(uint32_t frame, uint16_t u) const {
+    const auto begin = peaks.begin() + frame_first[frame];
+    const auto end = peaks.begin() + frame_first[frame + 1];
+    const auto lo =
+        std::lower_bound(begin, end, u, [](const PeakState& a, uint16_t x) { return a.u < x; });
+    auto hi = lo;
+    while (hi != end && hi->u == u) ++hi;
+    return {static_cast<uint32_t>(lo - peaks.begin()), static_cast<uint32_t>(hi - peaks.begin())};
+  }
+};
+
+PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_frame) {
+  PeakTable table;
+  const size_t n = archive.frames.size();
+  table.frame_first.assign(n + 1, 0);
+  size_t total = 0;
+  for (size_t f = 0; f < n; ++f) {
+    table.frame_first[f] = static_cast<uint32_t>(total);
+    if (use_frame[f]) total += archive.frames[f].peaks.size();
+  }
+  table.frame_first[n] = static_cast<uint32_t>(total);
+  table.peaks.resize(total);
+  for (size_t f = 0; f < n; ++f) {
+    if (!use_frame[f]) continue;
+    PeakState* out = table.peaks.data() + table.frame_first[f];
+    for (const Peak& p : archive.frames[f].peaks) {
+      out->frame = static_cast<uint32_t>(f);
+      out->u = p.u;
+      out->v = p.v;
+      out->score = p.score;
+      ++out;
+    }
+    std::sort(table.peaks.begin() + table.frame_first[f],
+              table.peaks.begin() + table.frame_first[f + 1],
+              [](const PeakState& a, const PeakState& b) {
+                return a.u != b.u ? a.u < b.u : a.v < b.v;
+              });
+  }
+  // Frames of one camera in time order.
+  table.next_frame.assign(n, -1);
+  std::vector<uint32_t> order;
+  for (size_t f = 0; f < n; ++f)
+    if (use_frame[f]) order.push_back(static_cast<uint32_t>(f));
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    const FrameRecord& fa = archive.frames[a];
+    const FrameRecord& fb = archive.frames[b];
+    return fa.camera != fb.camera ? fa.camera < fb.camera : fa.timestamp_ns < fb.timestamp_ns;
+  });
+  for (size_t i = 0; i + 1 < order.size(); ++i) {
+    if (archive.frames[order[i]].camera == archive.frames[order[i + 1]].camera)
+      table.next_frame[order[i]] = static_cast<int32_t>(order[i + 1]);
+  }
+  return table;
+}
+
+// Joins peaks that are neighbours in (column, frame) and agree on some hypothesis.
+void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
+                    const ReconstructOptions& options, UnionFind* labels) {
+  const size_t frames = table.frame_first.size() - 1;
+  for (size_t f = 0; f < frames; ++f) {
+    const uint32_t begin = table.frame_first[f], end = table.frame_first[f + 1];
+    // Column neighbours: the run at u + 1 starts after the run at u.
+    uint32_t next_col = begin;
+    for (uint32_t i = begin; i < end; ++i) {
+      const PeakState& p = table.peaks[i];
+      if (p.hypotheses == 0) continue;
+      while (next_col < end && table.peaks[next_col].u <= p.u) ++next_col;
+      for (uint32_t j = next_col; j < end && table.peaks[j].u == p.u + 1; ++j) {
+        const PeakState& q = table.peaks[j];
+        if (q.hypotheses == 0 || std::abs(q.v - p.v) > options.label_max_row_step_px) continue;
+        if (Consistent(hyp, p, q, kLinkColumnMm)) labels->Join(i, j);
+      }
+    }
+    const int32_t g = table.next_frame[f];
+    if (g < 0) continue;
+    for (uint32_t i = begin; i < end;) {
+      const uint16_t u = table.peaks[i].u;
+      uint32_t run_end = i;
+      while (run_end < end && table.peaks[run_end].u == u) ++run_end;
+      const auto [lo, hi] = table.Column(static_cast<uint32_t>(g), u);
+      for (uint32_t a = i; a < run_end; ++a) {
+        const PeakState& p = table.peaks[a];
+        if (p.hypotheses == 0) continue;
+        for (uint32_t b = lo; b < hi; ++b) {
+          const PeakState& q = table.peaks[b];
+          if (q.hypotheses == 0 || std::abs(q.v - p.v) > options.label_max_frame_step_px) continue;
+          if (Consistent(hyp, p, q, kLinkFrameMm)) labels->Join(a, b);
+        }
+      }
+      i = run_end;
+    }
+  }
+}
+
+// Column counting: in one column of one view region, as many peaks as lasers are the
+// lasers top (highest) to bottom.
+void DecideByColumnCount(PeakTable* table, const std::vector<Hypothesis>& hyp, int laser_count) {
+  if (laser_count < 2) return;
+  const size_t frames = table->frame_first.size() - 1;
+  for (size_t f = 0; f < frames; ++f) {
+    const uint32_t begin = table->frame_first[f], end = table->frame_first[f + 1];
+    for (uint32_t i = begin; i < end;) {
+      uint32_t run_end = i;
+      while (run_end < end && table->peaks[run_end].u == table->peaks[i].u) ++run_end;
+      for (uint8_t region = 0; region < 3; ++region) {
+        std::array<uint32_t, kMaxLasers> members{};
+        int n = 0;
+        for (uint32_t j = i; j < run_end; ++j) {
+          const PeakState& p = table->peaks[j];
+          if (p.region != region || p.hypotheses == 0 || p.panel) continue;
+          if (n == laser_count) {
+            n = laser_count + 1;
+            break;
+          }
+          members[n++] = j;
+        }
+        if (n != laser_count) continue;
+        // Rows ascend within a column: the first is the highest laser.
+        for (int r = 0; r < n; ++r) {
+          PeakState& p = table->peaks[members[r]];
+          if (p.rule != Rule::kNone) continue;
+          const int laser = laser_count - 1 - r;
+          int found = -1, count = 0;
+          for (int h = 0; h < p.hypotheses; ++h) {
+            if (hyp[p.first_hypothesis + h].key % kMaxLasers == laser) {
+              found = h;
+              ++count;
+            }
+          }
+          if (count == 1) {
+            p.chosen = static_cast<int16_t>(found);
+            p.rule = Rule::kColumnCount;
+          }
+        }
+      }
+      i = run_end;
+    }
+  }
+}
+
+// Majority vote per label over the peaks decided alone; the winner decides the rest.
+void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, UnionFind* labels,
+                       ReconstructSummary* summary) {
+  const size_t n = table->peaks.size();
+  std::vector<int32_t> label_of_root(n, -1);
+  std::vector<std::array<uint32_t, kKeys>> votes;
+  std::vector<int32_t> label(n, -1);
+  for (uint32_t i = 0; i < n; ++i) {
+    const PeakState& p = table->peaks[i];
+    if (p.hypotheses == 0 || p.panel) continue;
+    const uint32_t root = labels->Find(i);
+    if (label_of_root[root] < 0) {
+      label_of_root[root] = static_cast<int32_t>(votes.size());
+      votes.push_back({});
+    }
+    label[i] = label_of_root[root];
+    if (p.chosen >= 0) ++votes[label[i]][hyp[p.first_hypothesis + p.chosen].key];
+  }
+  std::vector<int> winner(votes.size(), -1);
+  for (size_t l = 0; l < votes.size(); ++l) {
+    const auto best = std::max_element(votes[l].begin(), votes[l].end());
+    if (*best > 0) winner[l] = static_cast<int>(best - votes[l].begin());
+  }
+  for (uint32_t i = 0; i < n; ++i) {
+    PeakState& p = table->peaks[i];
+    if (label[i] < 0) continue;
+    const int key = winner[label[i]];
+    if (key < 0) {
+      ++summary->dropped_ambiguous;
+      p.chosen = -1;
+      continue;
+    }
+    const int h = FindHypothesis(hyp, p, key);
+    if (h < 0 || (p.chosen >= 0 && p.chosen != h)) {
+      ++summary->dropped_conflict;
+      p.chosen = -1;
+      p.rule = Rule::kNone;
+      continue;
+    }
+    if (p.chosen < 0) {
+      p.chosen = static_cast<int16_t>(h);
+      p.rule = Rule::kLabelVote;
+    }
+  }
+}
+
+// Output points with their place in the (column, frame) grid.
+struct GridPoint {
+  uint32_t peak = 0;
+  Eigen::Vector3d point;
+  Eigen::Vector3d last_direction;
+  float sin_angle = 0;
+  uint8_t key = 0;
+  bool keep = true;
+};
+
+class Grid {
+ public:
+  Grid(const PeakTable& table, const std::vector<Hypothesis>& hyp) : table_(table) {
+    point_of_peak_.assign(table.peaks.size(), -1);
+    for (uint32_t i = 0; i < table.peaks.size(); ++i) {
+      const PeakState& p = table.peaks[i];
+      if (p.chosen < 0) continue;
+      const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+      point_of_peak_[i] = static_cast<int32_t>(points.size());
+      points.push_back({i, h.point, h.last_direction, h.sin_angle, h.key, true});
+    }
+    previous_frame_.assign(table.next_frame.size(), -1);
+    for (size_t f = 0; f < table.next_frame.size(); ++f)
+      if (table.next_frame[f] >= 0) previous_frame_[table.next_frame[f]] = static_cast<int32_t>(f);
+  }
+
+  // The kept point of the same (view, laser) at column u + du in the frame df away whose
+  // row is nearest, within max_dv; -1 if none.
+  int32_t Neighbour(const GridPoint& gp, int du, int df, double max_dv) const {
+    const PeakState& p = table_.peaks[gp.peak];
+    int32_t frame = static_cast<int32_t>(p.frame);
+    if (df > 0) frame = table_.next_frame[frame];
+    if (df < 0) frame = previous_frame_[frame];
+    const int u = p.u + du;
+    if (frame < 0 || u < 0 || u > 65535) return -1;
+    const auto [lo, hi] = table_.Column(static_cast<uint32_t>(frame), static_cast<uint16_t>(u));
+    int32_t best = -1;
+    double best_dv = max_dv;
+    for (uint32_t j = lo; j < hi; ++j) {
+      const int32_t q = point_of_peak_[j];
+      if (q < 0 || !points[q].keep || points[q].key != gp.key) continue;
+      const double dv = std::abs(table_.peaks[j].v - p.v);
+      if (dv <= best_dv) {
+        best_dv = dv;
+        best = q;
+      }
+    }
+    return best;
+  }
+
+  std::vector<GridPoint> points;
+
+ private:
+  const PeakTable& table_;
+  std::vector<int32_t> point_of_peak_;
+  std::vector<int32_t> previous_frame_;
+};
+
+// How many kept columns follow this point in direction du before the stripe ends.
+int RunLength(const Grid& grid, const GridPoint& gp, int du, int limit, double max_dv) {
+  int n = 0;
+  const GridPoint* at = &gp;
+  while (n < limit) {
+    const int32_t q = grid.Neighbour(*at, du, 0, max_dv);
+    if (q < 0) break;
+    at = &grid.points[q];
+    ++n;
+  }
+  return n;
+}
+
+double Median(std::vector<double> values) {
+  if (values.empty()) return 0.0;
+  const auto mid = values.begin() + values.size() / 2;
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
+}
+
+}  // namespace
+
+const char* PointViewName(PointView view) {
+  switch (view) {
+    case PointView::kCenter: return "center";
+    case PointView::kLeft: return "left";
+    case PointView::kRight: return "right";
+    case PointView::kLeftRight: return "left-right";
+    case PointView::kRightLeft: return "right-left";
+  }
+  return "?";
+}
+
+bool BoundingCylinder::Contains(const Eigen::Vector3d& point) const {
+  if (point.z() < bottom_mm || point.z() > top_mm) return false;
+  return (point.head<2>() - center_mm).squaredNorm() <= radius_mm * radius_mm;
+}
+
+BoundingCylinder BoundingCylinder::FromBoard(const std::filesystem::path& board_json) {
+  const nlohmann::json json = JsonReader::ParseFile(board_json);
+  const JsonReader root(json, board_json.string());
+  BoundingCylinder c;
+  if (!root.Has("reconstruction")) return c;
+  const JsonReader r = root.Object("reconstruction");
+  r.AllowOnly({"bounding_cylinder"});
+  if (!r.Has("bounding_cylinder")) return c;
+  const JsonReader b = r.Object("bounding_cylinder");
+  b.AllowOnly({"radius_mm", "bottom_mm", "top_mm", "center_mm"});
+  c.radius_mm = b.Number("radius_mm", c.radius_mm, 1.0, 1e5);
+  c.bottom_mm = b.Number("bottom_mm", c.bottom_mm, -1e5, 1e5);
+  c.top_mm = b.Number("top_mm", c.top_mm, -1e5, 1e5);
+  if (c.top_mm <= c.bottom_mm) b.Fail("top_mm", "must be above bottom_mm");
+  const std::vector<double> center = b.Numbers("center_mm", 2, std::vector<double>{0.0, 0.0});
+  c.center_mm = {center[0], center[1]};
+  return c;
+}
+
+Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibration,
+                           const ReconstructOptions& options) {
+  Reconstruction result;
+  ReconstructSummary& summary = result.summary;
+  Stopwatch stopwatch(&summary);
+  auto progress = [&](const char* stage, double fraction) {
+    if (options.progress) options.progress(stage, fraction);
+  };
+  summary.archive_message = archive.report.message;
+  summary.archive_complete = archive.report.complete;
+  if (archive.header.is_null())
+    throw ReconstructError("no readable header (" + archive.report.message + ")");
+  if (!archive.report.complete)
+    summary.warnings.push_back("incomplete archive, using what was recovered: " +
+                               archive.report.message);
+  if (calibration.mirrors.size() != 2)
+    throw ReconstructError("the calibration needs exactly two mirrors");
+  CheckCalibration(archive, calibration, options, &summary);
+
+  Geometry g;
+  g.cameras = CamerasOf(archive, calibration);
+  g.mirror_views = MirrorViewsOf(g.cameras, calibration);
+  for (int m = 0; m < 2; ++m) g.mirrors[m] = calibration.mirrors[m].plane;
+  if (std::all_of(calibration.mirrors.begin(), calibration.mirrors.end(),
+                  [](const CalibrationMirror& m) { return m.corners_mm.size() == 4; })) {
+    for (const CalibrationMirror& m : calibration.mirrors) {
+      g.mirror_rectangles.push_back(MirrorRectangle(
+          m.name, m.plane, {m.corners_mm[0], m.corners_mm[1], m.corners_mm[2], m.corners_mm[3]}));
+    }
+  } else {
+    summary.warnings.push_back(
+        "the calibration has no mirror corners: rays through both mirrors are not followed");
+  }
+
+  std::vector<bool> use_frame(archive.frames.size());
+  for (size_t f = 0; f < archive.frames.size(); ++f) {
+    use_frame[f] = archive.frames[f].lasers_on && !archive.frames[f].peaks.empty();
+    if (use_frame[f]) {
+      ++summary.frames;
+      summary.peaks += archive.frames[f].peaks.size();
+    }
+  }
+  if (summary.peaks == 0) {
+    throw ReconstructError(archive.frames.empty()
+                               ? "the archive holds no frames (" + archive.report.message + ")"
+                               : "no frame with the lasers on has any peak");
+  }
+  PeakTable table = BuildTable(archive, use_frame);
+  stopwatch.Lap("read");
+  progress("laser heights", 0.0);
+
+  const LaserPlanes planes =
+      FitLaserPlanes(archive, calibration, g.cameras, options, &table.peaks, table.frame_first,
+                     &summary);
+  stopwatch.Lap("laser heights");
+
+  // Hypotheses per peak.
+  std::vector<Hypothesis> hyp;
+  hyp.reserve(table.peaks.size() * 2);
+  for (size_t f = 0; f < archive.frames.size(); ++f) {
+    if (!use_frame[f]) continue;
+    if (f % 64 == 0) progress("triangulation", static_cast<double>(f) / archive.frames.size());
+    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+      PeakState& p = table.peaks[i];
+      p.first_hypothesis = static_cast<uint32_t>(hyp.size());
+      if (p.panel) {
+        ++summary.dropped_panel;
+        continue;
+      }
+      if (!planes.valid[f]) {
+        ++summary.dropped_no_ray;
+        continue;
+      }
+      Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder, &p,
+                  &hyp);
+      if (p.no_ray) {
+        ++summary.dropped_no_ray;
+      } else if (p.hypotheses == 0) {
+        ++summary.dropped_outside;
+      } else if (p.hypotheses == 1) {
+        p.chosen = 0;
+        p.rule = Rule::kCylinder;
+      }
+    }
+  }
+  stopwatch.Lap("triangulation");
+  progress("correspondence", 0.0);
+
+  DecideByVolume(&table.peaks, hyp, options.cylinder);
+  DecideByColumnCount(&table, hyp, planes.count);
+  UnionFind labels(table.peaks.size());
+  LinkNeighbours(table, hyp, options, &labels);
+  DecideByLabelVote(&table, hyp, &labels, &summary);
+  for (const PeakState& p : table.peaks) {
+    if (p.chosen < 0) continue;
+    if (p.rule == Rule::kCylinder) ++summary.decided_by_cylinder;
+    if (p.rule == Rule::kVolume) ++summary.decided_by_volume;
+    if (p.rule == Rule::kColumnCount) ++summary.decided_by_column_count;
+    if (p.rule == Rule::kLabelVote) ++summary.decided_by_label_vote;
+  }
+  stopwatch.Lap("correspondence");
+  progress("filtering", 0.0);
+
+  Grid grid(table, hyp);
+  const double min_sin = std::sin(options.min_ray_plane_angle_deg * kDegToRad);
+  const double row_step = options.label_max_row_step_px;
+  const double frame_step = options.label_max_frame_step_px;
+  for (GridPoint& gp : grid.points) {
+    if (gp.sin_angle < min_sin) {
+      gp.keep = false;
+      ++summary.dropped_flat_angle;
+    }
+  }
+  // Stripe ends, decided on the whole stripe before any of it is dropped.
+  std::vector<int> end_distance(grid.points.size(), 0);
+  const int end_limit = std::max(1, options.stripe_end_columns) + 2;
+  for (size_t i = 0; i < grid.points.size(); ++i) {
+    const GridPoint& gp = grid.points[i];
+    if (!gp.keep) continue;
+    end_distance[i] = std::min(RunLength(grid, gp, -1, end_limit, row_step),
+                               RunLength(grid, gp, +1, end_limit, row_step));
+  }
+  if (options.drop_stripe_ends) {
+    for (size_t i = 0; i < grid.points.size(); ++i) {
+      if (grid.points[i].keep && end_distance[i] < options.stripe_end_columns) {
+        grid.points[i].keep = false;
+        ++summary.dropped_stripe_end;
+      }
+    }
+  }
+  // Outliers: the second difference along the column and frame directions.
+  if (options.remove_outliers) {
+    std::vector<double> residual(grid.points.size(), -1.0);
+    std::vector<double> all;
+    for (size_t i = 0; i < grid.points.size(); ++i) {
+      const GridPoint& gp = grid.points[i];
+      if (!gp.keep) continue;
+      double best = std::numeric_limits<double>::infinity();
+      bool isolated = true;
+      for (const auto& [du, df, dv] : {std::tuple{1, 0, row_step}, std::tuple{0, 1, frame_step}}) {
+        const int32_t a = grid.Neighbour(gp, du, df, dv);
+        const int32_t b = grid.Neighbour(gp, -du, -df, dv);
+        if (a >= 0 || b >= 0) isolated = false;
+        if (a < 0 || b < 0) continue;
+        best = std::min(best, (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm());
+      }
+      if (isolated) {
+        residual[i] = std::numeric_limits<double>::infinity();
+      } else if (std::isfinite(best)) {
+        residual[i] = best;
+        all.push_back(best);
+      }
+    }
+    // Gross errors only: the surface's own bends (edges, folds) stay.
+    const double limit =
+        std::max(options.outlier_min_mm, options.outlier_sigmas * 1.4826 * Median(all));
+    for (size_t i = 0; i < grid.points.size(); ++i) {
+      if (residual[i] > limit) {
+        grid.points[i].keep = false;
+        ++summary.dropped_outlier;
+      }
+    }
+  }
+  if (options.clip_to_cylinder) {
+    for (GridPoint& gp : grid.points) {
+      if (gp.keep && !options.cylinder.Contains(gp.point)) {
+        gp.keep = false;
+        ++summary.dropped_outside;
+      }
+    }
+  }
+  // The paper's 3×3 average in (column, frame), within one surface.
+  std::vector<Eigen::Vector3d> smoothed(grid.points.size());
+  for (size_t i = 0; i < grid.points.size(); ++i) {
+    const GridPoint& gp = grid.points[i];
+    smoothed[i] = gp.point;
+    if (!gp.keep || !options.smooth_3x3) continue;
+    Eigen::Vector3d sum = gp.point;
+    int n = 1;
+    for (int df = -1; df <= 1; ++df) {
+      for (int du = -1; du <= 1; ++du) {
+        if (du == 0 && df == 0) continue;
+        const int32_t q = grid.Neighbour(gp, du, df, df == 0 ? row_step : frame_step);
+        if (q < 0 || (grid.points[q].point - gp.point).norm() > kSmoothMaxMm) continue;
+        sum += grid.points[q].point;
+        ++n;
+      }
+    }
+    smoothed[i] = sum / n;
+  }
+  stopwatch.Lap("filtering");
+  progress("normals", 0.0);
+
+  // Normals from the grid: the column and the frame direction span the surface.
+  PointCloud& cloud = result.cloud;
+  summary.points_per_camera.assign(g.cameras.size(), 0);
+  summary.points_per_view.assign(kViews, 0);
+  summary.points_per_laser.assign(planes.count, 0);
+  for (size_t i = 0; i < grid.points.size(); ++i) {
+    const GridPoint& gp = grid.points[i];
+    if (!gp.keep) continue;
+    auto tangent = [&](int du, int df, double dv) -> std::optional<Eigen::Vector3d> {
+      const int32_t a = grid.Neighbour(gp, du, df, dv);
+      const int32_t b = grid.Neighbour(gp, -du, -df, dv);
+      if (a < 0 && b < 0) return std::nullopt;
+      const Eigen::Vector3d pa = a >= 0 ? smoothed[a] : smoothed[i];
+      const Eigen::Vector3d pb = b >= 0 ? smoothed[b] : smoothed[i];
+      return pa - pb;
+    };
+    const auto along_column = tangent(1, 0, row_step);
+    const auto along_frame = tangent(0, 1, frame_step);
+    Eigen::Vector3d normal = -gp.last_direction;
+    if (along_column && along_frame) {
+      const Eigen::Vector3d n = along_column->cross(*along_frame);
+      if (n.norm() > 1e-9) normal = n.normalized();
+    } else if (along_column) {
+      // Only the stripe's direction: the normal closest to the ray that is orthogonal to it.
+      const Eigen::Vector3d t = along_column->normalized();
+      const Eigen::Vector3d n = -gp.last_direction - t.dot(-gp.last_direction) * t;
+      if (n.norm() > 1e-9) normal = n.normalized();
+    }
+    if (normal.dot(gp.last_direction) > 0) normal = -normal;
+
+    const PeakState& p = table.peaks[gp.peak];
+    const FrameRecord& frame = archive.frames[p.frame];
+    CloudPoint cp;
+    cp.point_in_world = smoothed[i].cast<float>();
+    cp.normal = normal.cast<float>();
+    cp.camera = frame.camera;
+    cp.view = static_cast<PointView>(gp.key / kMaxLasers);
+    cp.laser = static_cast<uint8_t>(gp.key % kMaxLasers);
+    cp.frame = frame.sequence;
+    cp.u = p.u;
+    cp.v = p.v;
+    // Peak score, how squarely the ray meets the plane, how far from the stripe's end.
+    const double angle_factor = std::min(1.0, gp.sin_angle / std::sin(30.0 * kDegToRad));
+    const double end_factor =
+        std::min(1.0, (end_distance[i] + 1.0) / (options.stripe_end_columns + 2.0));
+    cp.confidence = static_cast<float>(std::clamp(p.score * angle_factor * end_factor, 0.0, 1.0));
+    ++summary.points_per_camera[cp.camera];
+    ++summary.points_per_view[static_cast<int>(cp.view)];
+    ++summary.points_per_laser[cp.laser];
+    if (cp.view == PointView::kLeftRight || cp.view == PointView::kRightLeft)
+      ++summary.double_bounce;
+    cloud.points.push_back(cp);
+  }
+  stopwatch.Lap("normals");
+  if (options.icp) {
+    progress("icp", 0.0);
+    summary.icp = RefineViews(&cloud);
+    stopwatch.Lap("icp");
+  }
+  summary.points = cloud.points.size();
+  progress("done", 1.0);
+  return result;
+}
+
+nlohmann::json SummaryJson(const ReconstructSummary& s) {
+  nlohmann::json per_view = nlohmann::json::object();
+  for (size_t v = 0; v < s.points_per_view.size(); ++v)
+    per_view[PointViewName(static_cast<PointView>(v))] = s.points_per_view[v];
+  nlohmann::json timings = nlohmann::json::object();
+  double total = 0;
+  for (const auto& [stage, seconds] : s.timings_s) {
+    timings[stage] = seconds;
+    total += seconds;
+  }
+  timings["total"] = total;
+  const LaserHeightSummary& l = s.laser_height;
+  nlohmann::json icp = {{"ran", s.icp.ran}, {"steps", nlohmann::json::array()}};
+  for (const IcpSummary::Step& step : s.icp.steps) {
+    icp["steps"].push_back({{"what", step.what},
+                            {"rmse_before_mm", step.rmse_before_mm},
+                            {"rmse_after_mm", step.rmse_after_mm},
+                            {"rotation_deg", step.rotation_deg},
+                            {"translation_mm", step.translation_mm},
+                            {"applied", step.applied}});
+  }
+  return {{"archive", {{"complete", s.archive_complete}, {"message", s.archive_message}}},
+          {"frames", s.frames},
+          {"peaks", s.peaks},
+          {"points", s.points},
+          {"points_per_camera", s.points_per_camera},
+          {"points_per_view", per_view},
+          {"points_per_laser", s.points_per_laser},
+          {"decided",
+           {{"cylinder", s.decided_by_cylinder},
+            {"volume", s.decided_by_volume},
+            {"column_count", s.decided_by_column_count},
+            {"label_vote", s.decided_by_label_vote}}},
+          {"dropped",
+           {{"panel", s.dropped_panel},
+            {"no_ray", s.dropped_no_ray},
+            {"outside_volume", s.dropped_outside},
+            {"ambiguous", s.dropped_ambiguous},
+            {"conflict", s.dropped_conflict},
+            {"flat_angle", s.dropped_flat_angle},
+            {"stripe_end", s.dropped_stripe_end},
+            {"outlier", s.dropped_outlier}}},
+          {"double_bounce", s.double_bounce},
+          {"laser_height",
+           {{"source", l.source},
+            {"reason", l.reason},
+            {"speed_mm_s", l.speed_mm_s},
+            {"height_at_t0_mm", l.height_at_t0_mm},
+            {"offsets_mm", l.offsets_mm},
+            {"normal", {l.normal.x(), l.normal.y(), l.normal.z()}},
+            {"panel_residual_rms_mm", l.panel_residual_rms_mm},
+            {"panel_points", l.panel_points},
+            {"readback",
+             {{"frames", l.readback_frames},
+              {"offset_mm", l.readback_offset_mm},
+              {"max_error_mm", l.readback_max_error_mm},
+              {"frames_off", l.readback_frames_off}}}}},
+          {"icp", icp},
+          {"warnings", s.warnings},
+          {"timings_s", timings}};
+}
+
+std::string SummaryText(const ReconstructSummary& s) {
+  std::string text = Format("%zu points from %zu peaks in %zu frames\n", s.points, s.peaks, s.frames);
+  text += "  per camera:";
+  for (size_t c = 0; c < s.points_per_camera.size(); ++c)
+    text += Format(" %zu: %zu", c, s.points_per_camera[c]);
+  text += "\n  per view:";
+  for (size_t v = 0; v < s.points_per_view.size(); ++v)
+    text += Format(" %s %zu", PointViewName(static_cast<PointView>(v)), s.points_per_view[v]);
+  text += "\n  per laser:";
+  for (size_t k = 0; k < s.points_per_laser.size(); ++k)
+    text += Format(" %zu: %zu", k, s.points_per_laser[k]);
+  text += Format("\n  decided by cylinder %zu, volume %zu, column count %zu, label vote %zu\n",
+                 s.decided_by_cylinder, s.decided_by_volume, s.decided_by_column_count,
+                 s.decided_by_label_vote);
+  text += Format(
+      "  dropped: panel %zu, no ray %zu, outside volume %zu, ambiguous %zu, conflict %zu, flat "
+      "angle %zu, stripe end %zu, outlier %zu\n",
+      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_ambiguous,
+      s.dropped_conflict, s.dropped_flat_angle, s.dropped_stripe_end, s.dropped_outlier);
+  const LaserHeightSummary& l = s.laser_height;
+  text += Format("  laser heights from %s", l.source.c_str());
+  if (l.source == "panels") {
+    text += Format(" (%zu points, rms %.3f mm, speed %.3f mm/s)", l.panel_points,
+                   l.panel_residual_rms_mm, l.speed_mm_s);
+    if (l.readback_frames)
+      text += Format("; readback max error %.3f mm over %zu frames (%zu off)",
+                     l.readback_max_error_mm, l.readback_frames, l.readback_frames_off);
+  } else {
+    text += " (" + l.reason + ")";
+  }
+  text += "\n";
+  if (s.icp.ran) {
+    for (const IcpSummary::Step& step : s.icp.steps)
+      text += Format("  icp %s: rmse %.3f -> %.3f mm, %.4f deg, %.3f mm%s\n", step.what.c_str(),
+                     step.rmse_before_mm, step.rmse_after_mm, step.rotation_deg,
+                     step.translation_mm, step.applied ? "" : " (not applied)");
+  }
+  double total = 0;
+  text += "  timings:";
+  for (const auto& [stage, seconds] : s.timings_s) {
+    text += Format(" %s %.3f s,", stage.c_str(), seconds);
+    total += seconds;
+  }
+  text += Format(" total %.3f s\n", total);
+  for (const std::string& w : s.warnings) text += "  warning: " + w + "\n";
+  return text;
+}
+
+}  // namespace mirrorscan::reconstruction

@@ -1,0 +1,189 @@
+#pragma once
+// Reconstruction (docs/reconstruction.md): every laser peak of a scan archive to a 3D point
+// in the world frame through the calibrated cameras and mirrors. Laser heights per frame
+// come from the lines on the panels (host/calibration/laser_height), the slide readback
+// checks them and stands in where the panels are not seen. Each peak gets its view (the
+// calibration's view regions, mirror rays reflected, rays that bounce in both mirrors
+// followed through both) and its laser (bounding cylinder, column counting, then a
+// majority vote over peaks that are neighbours in column and frame); then confidence,
+// filters, normals from the (column, frame) grid and the merged cloud of every camera and
+// view.
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "common/config/calibration.h"
+#include "common/scan_format/scan_format.h"
+
+namespace mirrorscan::reconstruction {
+
+// Bad input that makes a cloud impossible or untrustworthy (no header, no frames, a camera
+// the calibration lacks, ...). The message is one line saying what is wrong.
+class ReconstructError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// The archive was made with another calibration than the one given.
+class CalibrationMismatchError : public ReconstructError {
+ public:
+  using ReconstructError::ReconstructError;
+};
+
+// The view a point was seen in: directly, in one mirror, or through both mirrors (the
+// first named mirror met first). Values as in the virtual cabinet's truth.
+enum class PointView : uint8_t { kCenter = 0, kLeft = 1, kRight = 2, kLeftRight = 3, kRightLeft = 4 };
+const char* PointViewName(PointView view);
+
+struct CloudPoint {
+  Eigen::Vector3f point_in_world = Eigen::Vector3f::Zero();
+  Eigen::Vector3f normal = Eigen::Vector3f::Zero();  // unit, towards the (mirrored) camera
+  uint8_t camera = 0;                                // FrameRecord::camera
+  PointView view = PointView::kCenter;
+  uint8_t laser = 0;
+  uint32_t frame = 0;  // the frame's sequence number (FrameRecord::sequence)
+  float u = 0;         // image column of the peak
+  float v = 0;         // sub-pixel row of the peak
+  float confidence = 0;  // in [0, 1]
+};
+
+struct PointCloud {
+  std::vector<CloudPoint> points;
+};
+
+// A vertical cylinder about the cabinet's axis that holds the subject: a laser hypothesis
+// whose point falls outside it is rejected, and so is any output point.
+struct BoundingCylinder {
+  Eigen::Vector2d center_mm = Eigen::Vector2d::Zero();
+  double radius_mm = 450.0;
+  double bottom_mm = 20.0;
+  double top_mm = 2100.0;
+  bool Contains(const Eigen::Vector3d& point) const;
+  // From board.json's optional "reconstruction": {"bounding_cylinder": {"radius_mm",
+  // "bottom_mm", "top_mm", "center_mm"}}; defaults for missing keys. ConfigError naming the
+  // file and key on a bad value.
+  static BoundingCylinder FromBoard(const std::filesystem::path& board_json);
+};
+
+struct ReconstructOptions {
+  BoundingCylinder cylinder;
+  // Refuse an archive made with another calibration (CalibrationMismatchError) unless this
+  // is set; then it is a warning.
+  bool allow_calibration_mismatch = false;
+  // SHA-256 (hex) of the calibration file's bytes, compared with the archive header's
+  // `calibration_sha256` (what the device records); empty: not compared.
+  std::string calibration_file_sha256;
+  // Laser heights from the panel lines; false: from the slide readback alone.
+  bool laser_height_from_panels = true;
+  double panel_margin_mm = 120.0;
+  // Frames whose panel-measured height is further than this from the fitted line, or whose
+  // readback disagrees by more, are reported.
+  double readback_tolerance_mm = 1.0;
+  // Rays meeting the laser plane flatter than this give no useful depth.
+  double min_ray_plane_angle_deg = 8.0;
+  // Neighbours in (column, frame) belong to one label when their rows differ less than this.
+  double label_max_row_step_px = 3.0;
+  double label_max_frame_step_px = 20.0;
+  // Filters, each switchable.
+  bool smooth_3x3 = true;       // the paper's 3×3 average in (column, frame)
+  bool remove_outliers = true;  // statistical, against the (column, frame) neighbours
+  double outlier_sigmas = 4.0;
+  double outlier_min_mm = 0.5;  // never an outlier closer than this to its neighbours
+  // The last columns of a stripe leave the plane's trace; they get a low confidence and are
+  // dropped only when asked.
+  bool drop_stripe_ends = false;
+  int stripe_end_columns = 2;
+  bool clip_to_cylinder = true;
+  // Optional ICP refinement of mirror views and the lower camera against the rest
+  // (reported; off by default).
+  bool icp = false;
+  // Progress: a stage name and how far it is in [0, 1]. May be empty.
+  std::function<void(const std::string& stage, double fraction)> progress;
+};
+
+struct LaserHeightSummary {
+  std::string source;  // "panels" or "readback"
+  std::string reason;  // why the readback was used, when it was
+  double speed_mm_s = 0.0;
+  double height_at_t0_mm = 0.0;
+  std::vector<double> offsets_mm;
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double panel_residual_rms_mm = 0.0;
+  size_t panel_points = 0;
+  // Readback against the fitted heights (frames with a readback).
+  size_t readback_frames = 0;
+  double readback_offset_mm = 0.0;
+  double readback_max_error_mm = 0.0;
+  size_t readback_frames_off = 0;
+};
+
+struct IcpSummary {
+  bool ran = false;
+  struct Step {
+    std::string what;  // e.g. "upper/left against upper/center"
+    double rmse_before_mm = 0.0, rmse_after_mm = 0.0;
+    double rotation_deg = 0.0, translation_mm = 0.0;
+    bool applied = false;
+  };
+  std::vector<Step> steps;
+};
+
+struct ReconstructSummary {
+  std::string archive_message;  // the reader's report
+  bool archive_complete = false;
+  size_t frames = 0;  // frames with lasers on used
+  size_t peaks = 0;
+  LaserHeightSummary laser_height;
+  // How each peak's laser/view was decided, or why it was dropped.
+  size_t decided_by_cylinder = 0;  // one hypothesis inside the bounding cylinder
+  // Exactly one hypothesis near points the cylinder decided (the volume the scan carves).
+  size_t decided_by_volume = 0;
+  size_t decided_by_column_count = 0;
+  size_t decided_by_label_vote = 0;
+  size_t dropped_panel = 0;        // the laser line on a panel (laser-height data)
+  size_t dropped_no_ray = 0;       // undistortion failed / ray misses everything
+  size_t dropped_outside = 0;      // no hypothesis inside the bounding cylinder
+  size_t dropped_ambiguous = 0;    // several hypotheses and nothing to decide
+  size_t dropped_conflict = 0;     // its label's vote is not among its hypotheses
+  size_t dropped_flat_angle = 0;   // ray too flat to the laser plane
+  size_t dropped_stripe_end = 0;
+  size_t dropped_outlier = 0;
+  size_t double_bounce = 0;        // triangulated through both mirrors
+  size_t points = 0;
+  std::vector<size_t> points_per_camera;  // by FrameRecord::camera
+  std::vector<size_t> points_per_view;    // by PointView
+  std::vector<size_t> points_per_laser;
+  IcpSummary icp;
+  std::vector<std::string> warnings;
+  // Seconds per stage, in order.
+  std::vector<std::pair<std::string, double>> timings_s;
+};
+
+struct Reconstruction {
+  PointCloud cloud;
+  ReconstructSummary summary;
+};
+
+// The archive's frames (lasers on) to a cloud. Throws CalibrationMismatchError,
+// ReconstructError (no header, no frames with peaks, a camera or view the archive needs
+// that the calibration lacks, no laser heights at all).
+Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibration,
+                           const ReconstructOptions& options = {});
+
+nlohmann::json SummaryJson(const ReconstructSummary& summary);
+std::string SummaryText(const ReconstructSummary& summary);
+
+// Binary little-endian PLY: x y z nx ny nz (float), camera view laser (uchar), frame
+// (uint), u v confidence (float). Throws std::runtime_error naming the file.
+void WritePly(const std::filesystem::path& path, const PointCloud& cloud);
+// Reads what WritePly writes (property order as written).
+PointCloud ReadPly(const std::filesystem::path& path);
+
+}  // namespace mirrorscan::reconstruction

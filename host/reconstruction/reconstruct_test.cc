@@ -1,0 +1,433 @@
+#include "host/reconstruction/reconstruct.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <tuple>
+
+#include <gtest/gtest.h>
+
+#include "boards/virtual/renderer.h"
+#include "boards/virtual/scene.h"
+#include "common/config/json_reader.h"
+#include "common/peaks/peaks.h"
+#include "host/reconstruction/icp.h"
+
+namespace mirrorscan::reconstruction {
+namespace {
+
+using virtual_cabinet::Renderer;
+using virtual_cabinet::Scene;
+using virtual_cabinet::TruthPeak;
+
+// A stretch of the cuboid scene's sweep as the board stores it (peaks per frame), the
+// renderer's truth for every frame, and the scene's true calibration.
+struct Sweep {
+  Scene scene;
+  Calibration calibration;
+  ScanArchive archive;
+  std::map<std::tuple<int, int, int>, std::vector<TruthPeak>> truth;  // (camera, frame, u)
+  size_t truth_points = 0;
+  // Truth points of the subject that the extractor found (a peak within 1 px of the row)
+  // and whose ray meets the laser plane at 10° or more: what reconstruction can give.
+  size_t truth_reconstructable = 0;
+};
+
+Sweep RenderSweep(const nlohmann::json& changes, int first_frame, int last_frame) {
+  const std::string dir = std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes";
+  nlohmann::json scene_json = JsonReader::ParseFile(dir + "/cuboid.json");
+  scene_json.merge_patch(changes);
+  Sweep sweep{Scene::Parse(scene_json, "cuboid.json", dir), {}, {}, {}, 0};
+  sweep.calibration = Calibration::Parse(sweep.scene.TrueCalibration(), "calibration.json");
+  const Renderer renderer(sweep.scene);
+  PeakExtractor extractor;
+  nlohmann::json cameras = nlohmann::json::array();
+  for (const auto& c : sweep.scene.cameras) cameras.push_back({{"name", c.name}});
+  sweep.archive.header = {{"cameras", cameras},
+                          {"lasers", {{"count", sweep.scene.lasers.count}}},
+                          {"slide", {{"speed_mm_s", sweep.scene.lasers.speed_mm_s}}},
+                          {"start_steady_ns", 0},
+                          {"calibration", sweep.scene.TrueCalibration()}};
+  for (int frame = first_frame; frame < last_frame; ++frame) {
+    const double t = sweep.scene.FrameTime(frame);
+    for (int camera = 0; camera < static_cast<int>(sweep.scene.cameras.size()); ++camera) {
+      const auto image = renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame));
+      FrameRecord record;
+      record.camera = static_cast<uint8_t>(camera);
+      record.lasers_on = true;
+      record.sequence = static_cast<uint32_t>(frame);
+      record.timestamp_ns = std::llround(t * 1e9);
+      record.slide_position_mm = sweep.scene.lasers.HeightAt(0, t);
+      ExtractPeaks(ImageView{image.pixels.data(), image.width, image.height, image.width},
+                   PeakParams(), &extractor, &record.peaks);
+      const Camera& cam = sweep.scene.cameras[camera].camera;
+      for (const TruthPeak& p : renderer.Truth(camera, t)) {
+        if (p.material != virtual_cabinet::Material::kSubject) continue;
+        sweep.truth[{camera, frame, p.u}].push_back(p);
+        ++sweep.truth_points;
+        const bool detected = std::any_of(record.peaks.begin(), record.peaks.end(), [&](const Peak& k) {
+          return k.u == p.u && std::abs(k.v - p.v) < 1.0;
+        });
+        // The last ray segment's direction: from the camera, or its mirror image, to the point.
+        Eigen::Vector3d eye = cam.CenterInWorld();
+        for (int m : virtual_cabinet::MirrorPath(p.view)) eye = sweep.scene.mirrors[m].plane.ReflectPoint(eye);
+        const double sin_angle = std::abs((p.point_in_world - eye).normalized().z());
+        if (detected && sin_angle > std::sin(10 * M_PI / 180)) ++sweep.truth_reconstructable;
+      }
+      sweep.archive.frames.push_back(std::move(record));
+    }
+  }
+  sweep.archive.report.complete = true;
+  sweep.archive.report.message = "complete";
+  return sweep;
+}
+
+// Frames 150–239: every laser crosses the cuboid (z 1142–1458) in some of them.
+const Sweep& CuboidSweep() {
+  static const Sweep sweep = RenderSweep(nlohmann::json::object(), 150, 240);
+  return sweep;
+}
+
+// The truth peak an output point stands for: same camera, frame and column, nearest row.
+const TruthPeak* Match(const Sweep& sweep, const CloudPoint& p) {
+  const auto it = sweep.truth.find({p.camera, static_cast<int>(p.frame), static_cast<int>(p.u)});
+  if (it == sweep.truth.end()) return nullptr;
+  const TruthPeak* best = nullptr;
+  double best_dv = 2.0;
+  for (const TruthPeak& t : it->second) {
+    if (std::abs(t.v - p.v) < best_dv) {
+      best_dv = std::abs(t.v - p.v);
+      best = &t;
+    }
+  }
+  return best;
+}
+
+// Distance from the analytic cuboid's surface (its metadata, not the renderer's mesh), and
+// the outward normal of the nearest face; nullopt for points away from the box (tripod).
+struct BoxDistance {
+  double distance = 0;
+  Eigen::Vector3d normal;
+  bool near_edge = false;
+};
+std::optional<BoxDistance> DistanceToCuboid(const Scene& scene, const Eigen::Vector3d& point) {
+  const nlohmann::json& meta = scene.subject.metadata;
+  const Eigen::Vector3d size(meta["size_mm"][0], meta["size_mm"][1], meta["size_mm"][2]);
+  const Eigen::Vector3d centre(meta["center_mm"][0], meta["center_mm"][1], meta["center_mm"][2]);
+  const double yaw = meta["yaw_deg"].get<double>() * M_PI / 180.0;
+  const Eigen::Matrix3d world_from_local =
+      Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Vector3d local = world_from_local.transpose() * (point - centre);
+  const Eigen::Vector3d half = size / 2;
+  if (std::abs(local.z()) > half.z() + 5) return std::nullopt;
+  BoxDistance best{1e9, {}, false};
+  for (int axis = 0; axis < 2; ++axis) {
+    for (int sign : {-1, 1}) {
+      const double d = std::abs(local[axis] - sign * half[axis]);
+      if (d < best.distance) {
+        best.distance = d;
+        best.normal = world_from_local.col(axis) * sign;
+        const int other = 1 - axis;
+        best.near_edge = std::abs(local[other]) > half[other] - 5 || std::abs(local.z()) > half.z() - 5;
+      }
+    }
+  }
+  if (best.distance > 20) return std::nullopt;
+  return best;
+}
+
+struct Score {
+  size_t points = 0, matched = 0, wrong = 0, found_right = 0;
+  double rms_mm = 0, max_mm = 0;
+  size_t box_points = 0;
+  size_t normals_off = 0;  // more than 10° from the face's normal
+};
+
+Score ScoreAgainstTruth(const Sweep& sweep, const PointCloud& cloud) {
+  Score s;
+  s.points = cloud.points.size();
+  std::map<const TruthPeak*, bool> found;
+  for (const CloudPoint& p : cloud.points) {
+    const TruthPeak* t = Match(sweep, p);
+    if (!t) continue;
+    ++s.matched;
+    if (t->laser != p.laser || static_cast<int>(t->view) != static_cast<int>(p.view)) {
+      ++s.wrong;
+      continue;
+    }
+    found[t] = true;
+    const auto box = DistanceToCuboid(sweep.scene, p.point_in_world.cast<double>());
+    if (!box || box->near_edge) continue;
+    ++s.box_points;
+    s.rms_mm += box->distance * box->distance;
+    s.max_mm = std::max(s.max_mm, box->distance);
+    if (p.normal.cast<double>().dot(box->normal) < std::cos(10 * M_PI / 180)) ++s.normals_off;
+  }
+  s.found_right = found.size();
+  if (s.box_points) s.rms_mm = std::sqrt(s.rms_mm / s.box_points);
+  return s;
+}
+
+TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
+  const Sweep& sweep = CuboidSweep();
+  const Reconstruction r = Reconstruct(sweep.archive, sweep.calibration);
+  const ReconstructSummary& s = r.summary;
+  EXPECT_EQ(s.laser_height.source, "panels");
+  EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
+  const Score score = ScoreAgainstTruth(sweep, r.cloud);
+  std::printf("%zu points, %zu matched, %zu wrong, %zu of %zu truth found (%zu reconstructable); "
+              "box rms %.4f max %.4f mm over %zu; normals off %zu\n%s",
+              score.points, score.matched, score.wrong, score.found_right, sweep.truth_points,
+              sweep.truth_reconstructable,
+              score.rms_mm, score.max_mm, score.box_points, score.normals_off,
+              SummaryText(s).c_str());
+  // Every laser and every view of the cuboid is there, and right.
+  for (size_t k = 0; k < 3; ++k) EXPECT_GT(s.points_per_laser.at(k), 1000u) << k;
+  for (int v = 0; v < 3; ++v) EXPECT_GT(s.points_per_view.at(v), 1000u) << v;
+  EXPECT_GE(score.matched, score.points * 0.99);
+  EXPECT_LE(score.wrong, score.points * 0.0005);
+  EXPECT_GE(score.found_right, sweep.truth_reconstructable * 0.99) << sweep.truth_reconstructable;
+  EXPECT_GT(score.box_points, score.points / 2);
+  EXPECT_LT(score.rms_mm, 0.15);
+  EXPECT_LT(score.max_mm, 1.0);
+  EXPECT_LE(score.normals_off, score.box_points / 100);
+}
+
+TEST(Reconstruct, SlideReadbackStandsInWhenThePanelsCannotBeUsed) {
+  const Sweep& sweep = CuboidSweep();
+  // Without mirror corners there are no panels to measure on.
+  Calibration calibration = sweep.calibration;
+  for (CalibrationMirror& m : calibration.mirrors) m.corners_mm.clear();
+  ReconstructOptions options;
+  options.allow_calibration_mismatch = true;  // the geometry changed, so the hash did
+  const Reconstruction r = Reconstruct(sweep.archive, calibration, options);
+  EXPECT_EQ(r.summary.laser_height.source, "readback");
+  EXPECT_NE(r.summary.laser_height.reason.find("corners"), std::string::npos)
+      << r.summary.laser_height.reason;
+  const Score score = ScoreAgainstTruth(sweep, r.cloud);
+  EXPECT_LE(score.wrong, score.points * 0.001);
+  EXPECT_LT(score.rms_mm, 0.15);
+
+  ReconstructOptions readback;
+  readback.laser_height_from_panels = false;
+  const Reconstruction by_option = Reconstruct(sweep.archive, sweep.calibration, readback);
+  EXPECT_EQ(by_option.summary.laser_height.source, "readback");
+  EXPECT_LT(ScoreAgainstTruth(sweep, by_option.cloud).rms_mm, 0.15);
+}
+
+TEST(Reconstruct, FiltersAreSwitchable) {
+  const Sweep& sweep = CuboidSweep();
+  ReconstructOptions raw;
+  raw.smooth_3x3 = false;
+  raw.remove_outliers = false;
+  const Reconstruction unfiltered = Reconstruct(sweep.archive, sweep.calibration, raw);
+  const Reconstruction filtered = Reconstruct(sweep.archive, sweep.calibration);
+  EXPECT_EQ(unfiltered.summary.dropped_outlier, 0u);
+  // Averaging 3×3 neighbours cuts the noise on the faces.
+  EXPECT_LT(ScoreAgainstTruth(sweep, filtered.cloud).rms_mm,
+            0.8 * ScoreAgainstTruth(sweep, unfiltered.cloud).rms_mm);
+  ReconstructOptions ends;
+  ends.drop_stripe_ends = true;
+  const Reconstruction trimmed = Reconstruct(sweep.archive, sweep.calibration, ends);
+  EXPECT_GT(trimmed.summary.dropped_stripe_end, 0u);
+  EXPECT_LT(trimmed.summary.points, filtered.summary.points);
+}
+
+TEST(Reconstruct, CalibrationOfAnotherCabinetIsRefused) {
+  const Sweep& sweep = CuboidSweep();
+  Calibration other = sweep.calibration;
+  other.mirrors[1].plane.offset += 0.5;
+  try {
+    Reconstruct(sweep.archive, other);
+    FAIL() << "accepted";
+  } catch (const CalibrationMismatchError& e) {
+    EXPECT_NE(std::string(e.what()).find("--calibration-mismatch-ok"), std::string::npos);
+  }
+  ReconstructOptions ok;
+  ok.allow_calibration_mismatch = true;
+  const Reconstruction r = Reconstruct(sweep.archive, other, ok);
+  ASSERT_FALSE(r.summary.warnings.empty());
+  EXPECT_NE(r.summary.warnings.front().find("mismatch"), std::string::npos);
+
+  // The device's way: the file's SHA-256 in the header.
+  ScanArchive device = sweep.archive;
+  device.header.erase("calibration");
+  device.header["calibration_sha256"] = "aa";
+  ReconstructOptions sha;
+  sha.calibration_file_sha256 = "bb";
+  EXPECT_THROW(Reconstruct(device, sweep.calibration, sha), CalibrationMismatchError);
+  sha.calibration_file_sha256 = "aa";
+  EXPECT_GT(Reconstruct(device, sweep.calibration, sha).summary.points, 0u);
+  device.header["calibration_hash"] = "0123456789abcdef";
+  EXPECT_THROW(Reconstruct(device, sweep.calibration, sha), CalibrationMismatchError);
+}
+
+TEST(Reconstruct, EmptyOrTruncatedArchives) {
+  const Sweep& sweep = CuboidSweep();
+  ScanArchive empty = sweep.archive;
+  empty.frames.clear();
+  EXPECT_THROW(Reconstruct(empty, sweep.calibration), ReconstructError);
+  ScanArchive no_header;
+  EXPECT_THROW(Reconstruct(no_header, sweep.calibration), ReconstructError);
+
+  // An archive cut mid-sweep: what was recovered, said so.
+  VectorSink sink;
+  ScanWriter writer(sink);
+  writer.Begin(sweep.archive.header);
+  for (const FrameRecord& f : sweep.archive.frames) writer.AppendFrame(f);
+  std::vector<uint8_t> bytes = sink.bytes();
+  bytes.resize(bytes.size() * 2 / 3);
+  const ScanArchive cut = ReadScan(bytes);
+  ASSERT_FALSE(cut.report.complete);
+  const Reconstruction r = Reconstruct(cut, sweep.calibration);
+  EXPECT_FALSE(r.summary.archive_complete);
+  EXPECT_GT(r.summary.points, 1000u);
+  ASSERT_FALSE(r.summary.warnings.empty());
+  EXPECT_NE(r.summary.warnings.front().find("incomplete archive"), std::string::npos);
+  EXPECT_LE(ScoreAgainstTruth(sweep, r.cloud).wrong, r.summary.points * 0.001);
+}
+
+TEST(Reconstruct, CalibrationMissingACameraOrAViewIsAnError) {
+  const Sweep& sweep = CuboidSweep();
+  Calibration one_camera = sweep.calibration;
+  one_camera.cameras.pop_back();
+  ReconstructOptions ok;
+  ok.allow_calibration_mismatch = true;
+  try {
+    Reconstruct(sweep.archive, one_camera, ok);
+    FAIL() << "accepted";
+  } catch (const ReconstructError& e) {
+    EXPECT_NE(std::string(e.what()).find("\"lower\" is not in the calibration"), std::string::npos)
+        << e.what();
+  }
+  Calibration no_right_view = sweep.calibration;
+  auto& views = no_right_view.cameras[0].views;
+  views.erase(std::remove_if(views.begin(), views.end(),
+                             [](const CalibrationView& v) { return v.mirror == "right"; }),
+              views.end());
+  try {
+    Reconstruct(sweep.archive, no_right_view, ok);
+    FAIL() << "accepted";
+  } catch (const ReconstructError& e) {
+    EXPECT_NE(std::string(e.what()).find("no view for the right mirror"), std::string::npos)
+        << e.what();
+  }
+}
+
+// ICP on an analytic ellipsoid seen as two overlapping views, one moved 1.5 mm: the
+// correction brings it back onto the surface.
+TEST(Reconstruct, IcpTakesBackAViewMovedOffTheOthers) {
+  const Eigen::Vector3d radii(150, 110, 300);
+  auto on_surface = [&](double azimuth, double elevation) {
+    return Eigen::Vector3d(radii.x() * std::cos(elevation) * std::cos(azimuth),
+                           radii.y() * std::cos(elevation) * std::sin(azimuth),
+                           1200 + radii.z() * std::sin(elevation));
+  };
+  auto distance = [&](const Eigen::Vector3f& p) {  // to the ellipsoid, first order
+    const Eigen::Vector3d q = p.cast<double>() - Eigen::Vector3d(0, 0, 1200);
+    const double f = (q.array() / radii.array()).matrix().norm();
+    const Eigen::Vector3d gradient = (q.array() / radii.array().square()).matrix();
+    return std::abs(f - 1) * f / gradient.norm();
+  };
+  PointCloud cloud;
+  for (double azimuth = -M_PI; azimuth < M_PI; azimuth += 0.01) {
+    for (double elevation = -1.2; elevation < 1.2; elevation += 0.01) {
+      CloudPoint p;
+      const Eigen::Vector3d q = on_surface(azimuth, elevation);
+      p.point_in_world = q.cast<float>();
+      const Eigen::Vector3d n = ((q - Eigen::Vector3d(0, 0, 1200)).array() / radii.array().square()).matrix();
+      p.normal = n.normalized().cast<float>();
+      // Front half directly, the back and right side through the right mirror, overlapping.
+      const double degrees = azimuth * 180 / M_PI;
+      if (degrees < 20) {
+        p.view = PointView::kCenter;
+        cloud.points.push_back(p);
+      }
+      if (degrees > -40) {
+        p.view = PointView::kRight;
+        p.point_in_world += Eigen::Vector3f(0.9f, 1.2f, 0);
+        cloud.points.push_back(p);
+      }
+    }
+  }
+  auto rms = [&](PointView view) {
+    double sum = 0;
+    size_t n = 0;
+    for (const CloudPoint& p : cloud.points) {
+      if (p.view != view) continue;
+      sum += std::pow(distance(p.point_in_world), 2);
+      ++n;
+    }
+    return std::sqrt(sum / n);
+  };
+  const double moved = rms(PointView::kRight);
+  const IcpSummary icp = RefineViews(&cloud);
+  ASSERT_TRUE(icp.ran);
+  const auto step = std::find_if(icp.steps.begin(), icp.steps.end(), [](const auto& s) {
+    return s.what == "camera 0 right against the views before it";
+  });
+  ASSERT_NE(step, icp.steps.end());
+  std::printf("moved view: %.3f mm rms from the surface, %.3f after ICP (%.3f mm, %.4f deg)\n",
+              moved, rms(PointView::kRight), step->translation_mm, step->rotation_deg);
+  EXPECT_TRUE(step->applied);
+  EXPECT_NEAR(step->translation_mm, 1.5, 0.2);
+  EXPECT_LT(rms(PointView::kRight), 0.1);
+  EXPECT_LT(rms(PointView::kCenter), 0.1);
+}
+
+TEST(Reconstruct, PlyRoundTrip) {
+  PointCloud cloud;
+  for (int i = 0; i < 5; ++i) {
+    CloudPoint p;
+    p.point_in_world = Eigen::Vector3f(i, 2.5f * i, -1.0f);
+    p.normal = Eigen::Vector3f(0, 0, 1);
+    p.camera = static_cast<uint8_t>(i % 2);
+    p.view = static_cast<PointView>(i % 5);
+    p.laser = static_cast<uint8_t>(i % 3);
+    p.frame = 1000u + i;
+    p.u = 3.0f * i;
+    p.v = 0.25f * i;
+    p.confidence = 0.1f * i;
+    cloud.points.push_back(p);
+  }
+  const auto path = std::filesystem::temp_directory_path() / "reconstruct_test.ply";
+  WritePly(path, cloud);
+  const PointCloud back = ReadPly(path);
+  ASSERT_EQ(back.points.size(), cloud.points.size());
+  for (size_t i = 0; i < cloud.points.size(); ++i) {
+    EXPECT_EQ(back.points[i].point_in_world, cloud.points[i].point_in_world);
+    EXPECT_EQ(back.points[i].view, cloud.points[i].view);
+    EXPECT_EQ(back.points[i].frame, cloud.points[i].frame);
+    EXPECT_EQ(back.points[i].v, cloud.points[i].v);
+    EXPECT_EQ(back.points[i].confidence, cloud.points[i].confidence);
+  }
+  std::ofstream(path) << "ply\nformat ascii 1.0\nend_header\n";
+  EXPECT_THROW(ReadPly(path), std::runtime_error);
+  std::filesystem::remove(path);
+}
+
+TEST(Reconstruct, BoundingCylinderFromBoard) {
+  const auto path = std::filesystem::temp_directory_path() / "reconstruct_test_board.json";
+  std::ofstream(path) << R"({"board": "x", "reconstruction": {"bounding_cylinder":
+      {"radius_mm": 300, "top_mm": 1900}}})";
+  const BoundingCylinder c = BoundingCylinder::FromBoard(path);
+  EXPECT_EQ(c.radius_mm, 300);
+  EXPECT_EQ(c.top_mm, 1900);
+  EXPECT_EQ(c.bottom_mm, BoundingCylinder().bottom_mm);
+  EXPECT_TRUE(c.Contains({0, 299, 1000}));
+  EXPECT_FALSE(c.Contains({0, 301, 1000}));
+  std::ofstream(path) << R"({"reconstruction": {"bounding_cylinder": {"radius": 300}}})";
+  try {
+    BoundingCylinder::FromBoard(path);
+    FAIL() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("radius"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove(path);
+}
+
+}  // namespace
+}  // namespace mirrorscan::reconstruction

@@ -1,0 +1,100 @@
+// Reconstruction speed: a whole 10 s, two-camera, three-laser sweep of the mannequin
+// (docs/reconstruction.md) from the archive's bytes to the filtered, merged cloud, one
+// thread. The sweep is rendered once outside the timing, or read from
+// MIRRORSCAN_BENCH_SCAN (an .mscan) with MIRRORSCAN_BENCH_CALIBRATION (its calibration).
+#include <benchmark/benchmark.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <vector>
+
+#include "boards/virtual/renderer.h"
+#include "common/config/calibration.h"
+#include "common/peaks/peaks.h"
+#include "common/scan_format/scan_format.h"
+#include "host/reconstruction/reconstruct.h"
+
+namespace mirrorscan {
+namespace {
+
+struct Input {
+  std::vector<uint8_t> archive;
+  Calibration calibration;
+  size_t peaks = 0;
+};
+
+Input Render() {
+  const virtual_cabinet::Scene scene = virtual_cabinet::Scene::Load(
+      std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/mannequin.json");
+  const virtual_cabinet::Renderer renderer(scene);
+  Input input;
+  input.calibration = Calibration::Parse(scene.TrueCalibration(), "calibration.json");
+  VectorSink sink;
+  ScanWriter writer(sink);
+  nlohmann::json cameras = nlohmann::json::array();
+  for (const auto& c : scene.cameras) cameras.push_back({{"name", c.name}});
+  writer.Begin({{"cameras", cameras},
+                {"lasers", {{"count", scene.lasers.count}}},
+                {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
+                {"start_steady_ns", 0},
+                {"calibration", scene.TrueCalibration()}});
+  PeakExtractor extractor;
+  for (int frame = 0; frame < scene.frames; ++frame) {
+    for (int camera = 0; camera < static_cast<int>(scene.cameras.size()); ++camera) {
+      const double t = scene.FrameTime(frame);
+      const auto image = renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame));
+      FrameRecord record;
+      record.camera = static_cast<uint8_t>(camera);
+      record.lasers_on = true;
+      record.sequence = static_cast<uint32_t>(frame);
+      record.timestamp_ns = std::llround(t * 1e9);
+      record.slide_position_mm = scene.lasers.HeightAt(0, t);
+      ExtractPeaks(ImageView{image.pixels.data(), image.width, image.height, image.width},
+                   PeakParams(), &extractor, &record.peaks);
+      writer.AppendFrame(record);
+    }
+  }
+  writer.Finish({{"status", "complete"}});
+  input.archive = sink.bytes();
+  input.peaks = writer.peaks_written();
+  return input;
+}
+
+const Input& Sweep() {
+  static const Input input = [] {
+    const char* scan = std::getenv("MIRRORSCAN_BENCH_SCAN");
+    const char* calibration = std::getenv("MIRRORSCAN_BENCH_CALIBRATION");
+    if (!scan || !calibration) return Render();
+    Input in;
+    std::ifstream file(scan, std::ios::binary);
+    in.archive.assign(std::istreambuf_iterator<char>(file), {});
+    in.calibration = Calibration::Load(calibration);
+    in.peaks = ReadScan(in.archive).report.peaks;
+    return in;
+  }();
+  return input;
+}
+
+void BM_ReconstructSweep(benchmark::State& state) {
+  const Input& input = Sweep();
+  reconstruction::ReconstructOptions options;
+  options.allow_calibration_mismatch = true;  // the calibration is given with the archive
+  size_t points = 0;
+  for (auto _ : state) {
+    const ScanArchive archive = ReadScan(input.archive);
+    const reconstruction::Reconstruction r =
+        reconstruction::Reconstruct(archive, input.calibration, options);
+    points = r.cloud.points.size();
+    benchmark::DoNotOptimize(r.cloud.points.data());
+  }
+  state.counters["peaks"] = static_cast<double>(input.peaks);
+  state.counters["points"] = static_cast<double>(points);
+  state.counters["peaks/s"] = benchmark::Counter(
+      static_cast<double>(input.peaks) * static_cast<double>(state.iterations()),
+      benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_ReconstructSweep)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+
+}  // namespace
+}  // namespace mirrorscan
