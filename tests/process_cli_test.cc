@@ -33,10 +33,10 @@ void SimulateScan(const fs::path& dir, const nlohmann::json& changes) {
   nlohmann::json scene = JsonReader::ParseFile(SceneFile("mannequin"));
   scene.merge_patch(changes);
   std::ofstream(dir / "scene.json") << scene.dump();
-  const Result r = RunMirrorscan("sim scan --scene " + (dir / "scene.json").string() + " --out " +
-                                 (dir / "sweep").string() + " --no-images --board " +
-                                 MIRRORSCAN_SOURCE_DIR + "/boards/virtual/board.json --peaks " +
-                                 (dir / "scan.mscan").string());
+  const Result r =
+      RunMirrorscan("sim scan --scene " + (dir / "scene.json").string() + " --out " +
+                    (dir / "sweep").string() + " --no-images --board " + MIRRORSCAN_SOURCE_DIR +
+                    "/boards/virtual/board.json --peaks " + (dir / "scan.mscan").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   fs::copy_file(dir / "sweep" / "calibration.json", dir / "calibration.json");
 }
@@ -67,10 +67,10 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
   std::ofstream(out / "mesh.stl") << "stale";
   const Result r = RunMirrorscan(Process(*dir_, "--formats ply,obj --preview-height 300"));
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  for (const char* name : {"points.ply", "mesh.ply", "mesh.obj", "summary.json",
-                           "preview-front.png", "preview-back.png", "preview-left.png",
-                           "preview-right.png", "preview-cloud-views.png",
-                           "preview-cloud-cameras.png"}) {
+  for (const char* name :
+       {"points.ply", "mesh.ply", "mesh.obj", "summary.json", "preview-front.png",
+        "preview-back.png", "preview-left.png", "preview-right.png", "preview-cloud-views.png",
+        "preview-cloud-cameras.png"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
   }
   EXPECT_FALSE(fs::exists(out / "mesh.stl"));

@@ -56,11 +56,10 @@ struct MeshingOptions {
   bool watertight = false;
   // Below this many points (after downsampling) no mesh is made.
   int min_points = 2000;
-  // A body is seen from the camera and in both mirrors (on the mannequin 43 % of the
-  // normals face -y, 27 % +y, 15 % each of ±x; with black mirrors +y falls to 2.7 %): a
-  // cloud with less than this share
+  // A body is seen from the camera and in both mirrors: a cloud with less than this share
   // of its normals facing each of -y, +y, -x, +x (within 45°) covers one view only and is
-  // refused.
+  // refused. (Mannequin: 43 % face -y, 27 % +y, 15 % each of ±x; with black mirrors +y
+  // falls to 2.7 %.)
   double min_direction_share = 0.05;
 
   // Throws std::invalid_argument naming the field.
