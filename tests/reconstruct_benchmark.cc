@@ -90,11 +90,14 @@ void BM_ReconstructSweep(benchmark::State& state) {
   }
   state.counters["peaks"] = static_cast<double>(input.peaks);
   state.counters["points"] = static_cast<double>(points);
-  state.counters["peaks/s"] = benchmark::Counter(
-      static_cast<double>(input.peaks) * static_cast<double>(state.iterations()),
-      benchmark::Counter::kIsRate);
+  state.counters["peaks/s"] =
+      benchmark::Counter(static_cast<double>(input.peaks) * static_cast<double>(state.iterations()),
+                         benchmark::Counter::kIsRate);
 }
-BENCHMARK(BM_ReconstructSweep)->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime()->UseRealTime();
+BENCHMARK(BM_ReconstructSweep)
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime()
+    ->UseRealTime();
 
 }  // namespace
 }  // namespace mirrorscan

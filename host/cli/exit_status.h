@@ -5,7 +5,7 @@
 
 namespace mirrorscan::cli {
 
-// Exit statuses of `mirrorscan` (docs/processing.md): 0 done, 1 the input cannot give the
+// Exit statuses of `mirrorscan` (docs/meshing.md): 0 done, 1 the input cannot give the
 // result (the reason on stderr), 2 usage (bad options, an input file that is missing or
 // is not what it should be).
 inline constexpr int kExitFailure = 1;

@@ -23,7 +23,8 @@ struct ReconstructCliOptions {
   bool readback = false;
   bool no_smooth = false;
   bool no_outliers = false;
-  bool keep_stripe_ends = false;
+  bool drop_stripe_ends = false;
+  bool every_camera = false;
   bool icp = false;
   double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
   double min_angle_deg = -1;
@@ -48,7 +49,8 @@ void Run(const ReconstructCliOptions& o) {
   options.laser_height_from_panels = !o.readback;
   options.smooth_3x3 = !o.no_smooth;
   options.remove_outliers = !o.no_outliers;
-  options.drop_stripe_ends = !o.keep_stripe_ends;
+  options.drop_stripe_ends = o.drop_stripe_ends;
+  if (o.every_camera) options.prefer_camera_ratio = 0;
   options.icp = o.icp;
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
@@ -91,8 +93,7 @@ void AddReconstructCommand(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", o->out, "points.ply to write")->required();
-  cmd->add_option("--board", o->board,
-                  "board.json whose reconstruction.bounding_cylinder to use")
+  cmd->add_option("--board", o->board, "board.json whose reconstruction.bounding_cylinder to use")
       ->check(CLI::ExistingFile);
   cmd->add_option("--cylinder-radius", o->radius_mm, "Bounding cylinder radius, mm (default 450)");
   cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 20)");
@@ -106,7 +107,10 @@ void AddReconstructCommand(CLI::App& app) {
                 "Laser heights from the slide readback, not from the panel lines");
   cmd->add_flag("--no-smooth", o->no_smooth, "No 3x3 averaging in (column, frame)");
   cmd->add_flag("--no-outliers", o->no_outliers, "Keep statistical outliers");
-  cmd->add_flag("--keep-stripe-ends", o->keep_stripe_ends, "Keep the last columns of stripes");
+  cmd->add_flag("--drop-stripe-ends", o->drop_stripe_ends,
+                "Drop the last 2 columns of every stripe (they only get a low confidence)");
+  cmd->add_flag("--every-camera", o->every_camera,
+                "Keep every camera's points, also where another sees the place at a better angle");
   cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");
   cmd->add_flag("--json", o->json, "Print the summary as JSON (no progress)");
   cmd->callback([o] { Run(*o); });

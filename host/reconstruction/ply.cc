@@ -62,7 +62,8 @@ PointCloud ReadPly(const std::filesystem::path& path) {
   std::string line, properties;
   size_t count = 0;
   bool binary = false;
-  if (!std::getline(in, line) || line != "ply") throw std::runtime_error(path.string() + ": not a PLY file");
+  if (!std::getline(in, line) || line != "ply")
+    throw std::runtime_error(path.string() + ": not a PLY file");
   while (std::getline(in, line) && line != "end_header") {
     if (line == "format binary_little_endian 1.0") binary = true;
     if (line.rfind("element vertex ", 0) == 0) count = std::stoull(line.substr(15));

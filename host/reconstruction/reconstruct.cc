@@ -104,7 +104,8 @@ void CheckCalibration(const ScanArchive& archive, const Calibration& calibration
                       const ReconstructOptions& options, ReconstructSummary* summary) {
   std::vector<std::string> mismatches;
   bool named = false;
-  if (const auto* sha = HeaderValue(archive.header, "calibration_sha256"); sha && sha->is_string()) {
+  if (const auto* sha = HeaderValue(archive.header, "calibration_sha256");
+      sha && sha->is_string()) {
     named = true;
     if (!options.calibration_file_sha256.empty() &&
         sha->get<std::string>() != options.calibration_file_sha256) {
@@ -134,7 +135,8 @@ void CheckCalibration(const ScanArchive& archive, const Calibration& calibration
                            calibration.ContentHash());
     }
   }
-  if (!named) summary->warnings.push_back("the archive does not say which calibration it was made with");
+  if (!named)
+    summary->warnings.push_back("the archive does not say which calibration it was made with");
   if (mismatches.empty()) return;
   std::string text = mismatches.front();
   for (size_t i = 1; i < mismatches.size(); ++i) text += "; " + mismatches[i];
@@ -156,9 +158,10 @@ std::vector<const CalibrationCamera*> CamerasOf(const ScanArchive& archive,
     return cameras;
   }
   for (const nlohmann::json& entry : *listed) {
-    const std::string name = entry.is_object() && entry.contains("name") && entry["name"].is_string()
-                                 ? entry["name"].get<std::string>()
-                                 : "";
+    const std::string name =
+        entry.is_object() && entry.contains("name") && entry["name"].is_string()
+            ? entry["name"].get<std::string>()
+            : "";
     cameras.push_back(calibration.FindCamera(name));
   }
   // A camera the archive lists but never used does not need calibrating.
@@ -215,8 +218,8 @@ int LaserCountOf(const ScanArchive& archive, const Calibration& calibration) {
     count = (*lasers)["count"].get<int>();
   }
   if (count < 1 || count > kMaxLasers)
-    throw ReconstructError(Format("the archive says %d lasers; 1 to %d are supported", count,
-                                  kMaxLasers));
+    throw ReconstructError(
+        Format("the archive says %d lasers; 1 to %d are supported", count, kMaxLasers));
   return count;
 }
 
@@ -284,7 +287,8 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
         s.readback_max_error_mm = result.readback->max_error_mm;
         s.readback_frames_off = result.readback->frames_off;
       }
-      for (const std::string& w : result.warnings) summary->warnings.push_back("laser height: " + w);
+      for (const std::string& w : result.warnings)
+        summary->warnings.push_back("laser height: " + w);
       // The panels' own peaks are laser-height data, not the subject.
       for (const PanelPoint& p : result.points) {
         if (p.laser < 0) continue;
@@ -322,9 +326,8 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
     if (!std::isfinite(readback)) continue;
     const double h0 = readback - readback_offset;
     for (int k = 0; k < planes.count; ++k) {
-      const double offset = k < static_cast<int>(lasers.offsets_mm.size())
-                                ? lasers.offsets_mm[k]
-                                : k * lasers.spacing_mm;
+      const double offset = k < static_cast<int>(lasers.offsets_mm.size()) ? lasers.offsets_mm[k]
+                                                                           : k * lasers.spacing_mm;
       planes.per_frame[f][k] = Plane{lasers.normal, -(h0 + offset)};
     }
     planes.valid[f] = true;
@@ -356,8 +359,7 @@ struct Geometry {
 // Every (view, laser) this peak could be, inside the bounding cylinder.
 void Hypothesize(const Geometry& g, const FrameRecord& frame,
                  const std::array<Plane, kMaxLasers>& planes, int laser_count,
-                 const BoundingCylinder& cylinder, PeakState* peak,
-                 std::vector<Hypothesis>* out) {
+                 const BoundingCylinder& cylinder, PeakState* peak, std::vector<Hypothesis>* out) {
   const CalibrationCamera& camera = *g.cameras[frame.camera];
   const Eigen::Vector2d pixel(peak->u, peak->v);
   peak->first_hypothesis = static_cast<uint32_t>(out->size());
@@ -417,10 +419,9 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
 class Occupancy {
  public:
   explicit Occupancy(const BoundingCylinder& c) {
-    origin_ = Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm,
-                              c.bottom_mm);
-    size_ = ((Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm)) /
-             kVoxelMm)
+    origin_ =
+        Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
+    size_ = ((Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm)) / kVoxelMm)
                 .array()
                 .ceil()
                 .cast<int>() +
@@ -453,6 +454,45 @@ class Occupancy {
   Eigen::Vector3d origin_;
   Eigen::Vector3i size_;
   std::vector<uint8_t> cells_;
+};
+
+// Per camera and voxel of the bounding cylinder's box: the best ray–plane angle (its sine)
+// of that camera's points there.
+class AngleGrid {
+ public:
+  AngleGrid(const BoundingCylinder& c, size_t cameras) {
+    origin_ =
+        Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
+    size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / kVoxelMm)
+                .array()
+                .ceil()
+                .cast<int>() +
+            1;
+    cells_.assign(cameras, std::vector<float>(static_cast<size_t>(size_.prod()), 0.0f));
+  }
+  void Add(size_t camera, const Eigen::Vector3d& point, float sin_angle) {
+    if (const auto i = Index(point)) cells_[camera][*i] = std::max(cells_[camera][*i], sin_angle);
+  }
+  // The best sine another camera has at the point.
+  float BestOther(size_t camera, const Eigen::Vector3d& point) const {
+    const auto i = Index(point);
+    float best = 0;
+    if (!i) return best;
+    for (size_t c = 0; c < cells_.size(); ++c)
+      if (c != camera) best = std::max(best, cells_[c][*i]);
+    return best;
+  }
+
+ private:
+  static constexpr double kVoxelMm = 10.0;
+  std::optional<size_t> Index(const Eigen::Vector3d& point) const {
+    const Eigen::Vector3i c = ((point - origin_) / kVoxelMm).array().floor().cast<int>();
+    if ((c.array() < 0).any() || (c.array() >= size_.array()).any()) return std::nullopt;
+    return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
+  }
+  Eigen::Vector3d origin_;
+  Eigen::Vector3i size_;
+  std::vector<std::vector<float>> cells_;
 };
 
 // Peaks the cylinder left ambiguous with exactly one hypothesis in the carved volume.
@@ -537,11 +577,9 @@ PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_fr
       out->score = p.score;
       ++out;
     }
-    std::sort(table.peaks.begin() + table.frame_first[f],
-              table.peaks.begin() + table.frame_first[f + 1],
-              [](const PeakState& a, const PeakState& b) {
-                return a.u != b.u ? a.u < b.u : a.v < b.v;
-              });
+    std::sort(
+        table.peaks.begin() + table.frame_first[f], table.peaks.begin() + table.frame_first[f + 1],
+        [](const PeakState& a, const PeakState& b) { return a.u != b.u ? a.u < b.u : a.v < b.v; });
   }
   // Frames of one camera in time order.
   table.next_frame.assign(n, -1);
@@ -717,9 +755,31 @@ class Grid {
       if (table.next_frame[f] >= 0) previous_frame_[table.next_frame[f]] = static_cast<int32_t>(f);
   }
 
-  // The kept point of the same (view, laser) at column u + du in the frame df away whose
-  // row is nearest, within max_dv; -1 if none.
-  int32_t Neighbour(const GridPoint& gp, int du, int df, double max_dv) const {
+  // Finds every point's neighbours once: the point of the same (view, laser) at column
+  // u + du in the frame df away whose row is nearest, within row_step (same frame) or
+  // frame_step (another frame).
+  void Link(double row_step, double frame_step) {
+    neighbours_.assign(points.size(), {});
+    for (size_t i = 0; i < points.size(); ++i) {
+      for (int df = -1; df <= 1; ++df)
+        for (int du = -1; du <= 1; ++du)
+          neighbours_[i][Direction(du, df)] =
+              du == 0 && df == 0 ? -1 : Search(points[i], du, df, df == 0 ? row_step : frame_step);
+    }
+  }
+
+  // That neighbour while it is kept; -1 otherwise.
+  int32_t Neighbour(const GridPoint& gp, int du, int df) const {
+    const int32_t q = neighbours_[&gp - points.data()][Direction(du, df)];
+    return q >= 0 && points[q].keep ? q : -1;
+  }
+
+  std::vector<GridPoint> points;
+
+ private:
+  static int Direction(int du, int df) { return (df + 1) * 3 + du + 1; }
+
+  int32_t Search(const GridPoint& gp, int du, int df, double max_dv) const {
     const PeakState& p = table_.peaks[gp.peak];
     int32_t frame = static_cast<int32_t>(p.frame);
     if (df > 0) frame = table_.next_frame[frame];
@@ -731,7 +791,7 @@ class Grid {
     double best_dv = max_dv;
     for (uint32_t j = lo; j < hi; ++j) {
       const int32_t q = point_of_peak_[j];
-      if (q < 0 || !points[q].keep || points[q].key != gp.key) continue;
+      if (q < 0 || points[q].key != gp.key) continue;
       const double dv = std::abs(table_.peaks[j].v - p.v);
       if (dv <= best_dv) {
         best_dv = dv;
@@ -741,20 +801,18 @@ class Grid {
     return best;
   }
 
-  std::vector<GridPoint> points;
-
- private:
   const PeakTable& table_;
   std::vector<int32_t> point_of_peak_;
   std::vector<int32_t> previous_frame_;
+  std::vector<std::array<int32_t, 9>> neighbours_;
 };
 
 // How many kept columns follow this point in direction du before the stripe ends.
-int RunLength(const Grid& grid, const GridPoint& gp, int du, int limit, double max_dv) {
+int RunLength(const Grid& grid, const GridPoint& gp, int du, int limit) {
   int n = 0;
   const GridPoint* at = &gp;
   while (n < limit) {
-    const int32_t q = grid.Neighbour(*at, du, 0, max_dv);
+    const int32_t q = grid.Neighbour(*at, du, 0);
     if (q < 0) break;
     at = &grid.points[q];
     ++n;
@@ -773,11 +831,16 @@ double Median(std::vector<double> values) {
 
 const char* PointViewName(PointView view) {
   switch (view) {
-    case PointView::kCenter: return "center";
-    case PointView::kLeft: return "left";
-    case PointView::kRight: return "right";
-    case PointView::kLeftRight: return "left-right";
-    case PointView::kRightLeft: return "right-left";
+    case PointView::kCenter:
+      return "center";
+    case PointView::kLeft:
+      return "left";
+    case PointView::kRight:
+      return "right";
+    case PointView::kLeftRight:
+      return "left-right";
+    case PointView::kRightLeft:
+      return "right-left";
   }
   return "?";
 }
@@ -857,9 +920,8 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   stopwatch.Lap("read");
   progress("laser heights", 0.0);
 
-  const LaserPlanes planes =
-      FitLaserPlanes(archive, calibration, g.cameras, options, &table.peaks, table.frame_first,
-                     &summary);
+  const LaserPlanes planes = FitLaserPlanes(archive, calibration, g.cameras, options, &table.peaks,
+                                            table.frame_first, &summary);
   stopwatch.Lap("laser heights");
 
   // Hypotheses per peak.
@@ -910,13 +972,28 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   progress("filtering", 0.0);
 
   Grid grid(table, hyp);
+  grid.Link(options.label_max_row_step_px, options.label_max_frame_step_px);
   const double min_sin = std::sin(options.min_ray_plane_angle_deg * kDegToRad);
-  const double row_step = options.label_max_row_step_px;
-  const double frame_step = options.label_max_frame_step_px;
   for (GridPoint& gp : grid.points) {
     if (gp.sin_angle < min_sin) {
       gp.keep = false;
       ++summary.dropped_flat_angle;
+    }
+  }
+  // Where several cameras see the same surface, the one meeting the laser planes more
+  // squarely: depth error grows as 1 / tan(angle).
+  if (options.prefer_camera_ratio > 0 && g.cameras.size() > 1) {
+    AngleGrid angles(options.cylinder, g.cameras.size());
+    for (const GridPoint& gp : grid.points)
+      if (gp.keep)
+        angles.Add(archive.frames[table.peaks[gp.peak].frame].camera, gp.point, gp.sin_angle);
+    for (GridPoint& gp : grid.points) {
+      if (!gp.keep) continue;
+      const size_t camera = archive.frames[table.peaks[gp.peak].frame].camera;
+      if (angles.BestOther(camera, gp.point) > options.prefer_camera_ratio * gp.sin_angle) {
+        gp.keep = false;
+        ++summary.dropped_other_camera;
+      }
     }
   }
   // Stripe ends, decided on the whole stripe before any of it is dropped.
@@ -925,8 +1002,8 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   for (size_t i = 0; i < grid.points.size(); ++i) {
     const GridPoint& gp = grid.points[i];
     if (!gp.keep) continue;
-    end_distance[i] = std::min(RunLength(grid, gp, -1, end_limit, row_step),
-                               RunLength(grid, gp, +1, end_limit, row_step));
+    end_distance[i] =
+        std::min(RunLength(grid, gp, -1, end_limit), RunLength(grid, gp, +1, end_limit));
   }
   if (options.drop_stripe_ends) {
     for (size_t i = 0; i < grid.points.size(); ++i) {
@@ -945,12 +1022,13 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
       if (!gp.keep) continue;
       double best = std::numeric_limits<double>::infinity();
       bool isolated = true;
-      for (const auto& [du, df, dv] : {std::tuple{1, 0, row_step}, std::tuple{0, 1, frame_step}}) {
-        const int32_t a = grid.Neighbour(gp, du, df, dv);
-        const int32_t b = grid.Neighbour(gp, -du, -df, dv);
+      for (const auto& [du, df] : {std::pair{1, 0}, std::pair{0, 1}}) {
+        const int32_t a = grid.Neighbour(gp, du, df);
+        const int32_t b = grid.Neighbour(gp, -du, -df);
         if (a >= 0 || b >= 0) isolated = false;
         if (a < 0 || b < 0) continue;
-        best = std::min(best, (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm());
+        best =
+            std::min(best, (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm());
       }
       if (isolated) {
         residual[i] = std::numeric_limits<double>::infinity();
@@ -977,22 +1055,27 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
       }
     }
   }
-  // The paper's 3×3 average in (column, frame), within one surface.
+  // The paper's 3×3 average in (column, frame), within one surface. Neighbours come in
+  // opposite pairs only, so the average stays centred on the point: one-sided at a stripe's
+  // end or the first frame of a surface it would pull the point along the surface (up to
+  // half a frame's slide travel off its laser plane) and, on a curved one, off it.
   std::vector<Eigen::Vector3d> smoothed(grid.points.size());
+  auto usable = [&](const GridPoint& gp, int32_t q) {
+    return q >= 0 && (grid.points[q].point - gp.point).norm() <= kSmoothMaxMm;
+  };
   for (size_t i = 0; i < grid.points.size(); ++i) {
     const GridPoint& gp = grid.points[i];
     smoothed[i] = gp.point;
     if (!gp.keep || !options.smooth_3x3) continue;
     Eigen::Vector3d sum = gp.point;
     int n = 1;
-    for (int df = -1; df <= 1; ++df) {
-      for (int du = -1; du <= 1; ++du) {
-        if (du == 0 && df == 0) continue;
-        const int32_t q = grid.Neighbour(gp, du, df, df == 0 ? row_step : frame_step);
-        if (q < 0 || (grid.points[q].point - gp.point).norm() > kSmoothMaxMm) continue;
-        sum += grid.points[q].point;
-        ++n;
-      }
+    for (const auto& [du, df] :
+         {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
+      const int32_t a = grid.Neighbour(gp, du, df);
+      const int32_t b = grid.Neighbour(gp, -du, -df);
+      if (!usable(gp, a) || !usable(gp, b)) continue;
+      sum += grid.points[a].point + grid.points[b].point;
+      n += 2;
     }
     smoothed[i] = sum / n;
   }
@@ -1007,16 +1090,16 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   for (size_t i = 0; i < grid.points.size(); ++i) {
     const GridPoint& gp = grid.points[i];
     if (!gp.keep) continue;
-    auto tangent = [&](int du, int df, double dv) -> std::optional<Eigen::Vector3d> {
-      const int32_t a = grid.Neighbour(gp, du, df, dv);
-      const int32_t b = grid.Neighbour(gp, -du, -df, dv);
+    auto tangent = [&](int du, int df) -> std::optional<Eigen::Vector3d> {
+      const int32_t a = grid.Neighbour(gp, du, df);
+      const int32_t b = grid.Neighbour(gp, -du, -df);
       if (a < 0 && b < 0) return std::nullopt;
       const Eigen::Vector3d pa = a >= 0 ? smoothed[a] : smoothed[i];
       const Eigen::Vector3d pb = b >= 0 ? smoothed[b] : smoothed[i];
       return pa - pb;
     };
-    const auto along_column = tangent(1, 0, row_step);
-    const auto along_frame = tangent(0, 1, frame_step);
+    const auto along_column = tangent(1, 0);
+    const auto along_frame = tangent(0, 1);
     Eigen::Vector3d normal = -gp.last_direction;
     if (along_column && along_frame) {
       const Eigen::Vector3d n = along_column->cross(*along_frame);
@@ -1103,6 +1186,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"ambiguous", s.dropped_ambiguous},
             {"conflict", s.dropped_conflict},
             {"flat_angle", s.dropped_flat_angle},
+            {"other_camera", s.dropped_other_camera},
             {"stripe_end", s.dropped_stripe_end},
             {"outlier", s.dropped_outlier}}},
           {"double_bounce", s.double_bounce},
@@ -1126,7 +1210,8 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
 }
 
 std::string SummaryText(const ReconstructSummary& s) {
-  std::string text = Format("%zu points from %zu peaks in %zu frames\n", s.points, s.peaks, s.frames);
+  std::string text =
+      Format("%zu points from %zu peaks in %zu frames\n", s.points, s.peaks, s.frames);
   text += "  per camera:";
   for (size_t c = 0; c < s.points_per_camera.size(); ++c)
     text += Format(" %zu: %zu", c, s.points_per_camera[c]);
@@ -1141,9 +1226,9 @@ std::string SummaryText(const ReconstructSummary& s) {
                  s.decided_by_label_vote);
   text += Format(
       "  dropped: panel %zu, no ray %zu, outside volume %zu, ambiguous %zu, conflict %zu, flat "
-      "angle %zu, stripe end %zu, outlier %zu\n",
-      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_ambiguous,
-      s.dropped_conflict, s.dropped_flat_angle, s.dropped_stripe_end, s.dropped_outlier);
+      "angle %zu, other camera better %zu, stripe end %zu, outlier %zu\n",
+      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_ambiguous, s.dropped_conflict,
+      s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

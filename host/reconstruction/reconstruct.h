@@ -39,7 +39,13 @@ class CalibrationMismatchError : public ReconstructError {
 
 // The view a point was seen in: directly, in one mirror, or through both mirrors (the
 // first named mirror met first). Values as in the virtual cabinet's truth.
-enum class PointView : uint8_t { kCenter = 0, kLeft = 1, kRight = 2, kLeftRight = 3, kRightLeft = 4 };
+enum class PointView : uint8_t {
+  kCenter = 0,
+  kLeft = 1,
+  kRight = 2,
+  kLeftRight = 3,
+  kRightLeft = 4
+};
 const char* PointViewName(PointView view);
 
 struct CloudPoint {
@@ -48,9 +54,9 @@ struct CloudPoint {
   uint8_t camera = 0;                                // FrameRecord::camera
   PointView view = PointView::kCenter;
   uint8_t laser = 0;
-  uint32_t frame = 0;  // the frame's sequence number (FrameRecord::sequence)
-  float u = 0;         // image column of the peak
-  float v = 0;         // sub-pixel row of the peak
+  uint32_t frame = 0;    // the frame's sequence number (FrameRecord::sequence)
+  float u = 0;           // image column of the peak
+  float v = 0;           // sub-pixel row of the peak
   float confidence = 0;  // in [0, 1]
 };
 
@@ -88,6 +94,9 @@ struct ReconstructOptions {
   double readback_tolerance_mm = 1.0;
   // Rays meeting the laser plane flatter than this give no useful depth.
   double min_ray_plane_angle_deg = 8.0;
+  // Merging cameras: a point is dropped where another camera has points within a 10 mm
+  // voxel whose ray–plane angle's sine is this many times larger (0: keep every camera's).
+  double prefer_camera_ratio = 1.5;
   // Neighbours in (column, frame) belong to one label when their rows differ less than this.
   double label_max_row_step_px = 3.0;
   double label_max_frame_step_px = 20.0;
@@ -147,15 +156,16 @@ struct ReconstructSummary {
   size_t decided_by_volume = 0;
   size_t decided_by_column_count = 0;
   size_t decided_by_label_vote = 0;
-  size_t dropped_panel = 0;        // the laser line on a panel (laser-height data)
-  size_t dropped_no_ray = 0;       // undistortion failed / ray misses everything
-  size_t dropped_outside = 0;      // no hypothesis inside the bounding cylinder
-  size_t dropped_ambiguous = 0;    // several hypotheses and nothing to decide
-  size_t dropped_conflict = 0;     // its label's vote is not among its hypotheses
-  size_t dropped_flat_angle = 0;   // ray too flat to the laser plane
+  size_t dropped_panel = 0;         // the laser line on a panel (laser-height data)
+  size_t dropped_no_ray = 0;        // undistortion failed / ray misses everything
+  size_t dropped_outside = 0;       // no hypothesis inside the bounding cylinder
+  size_t dropped_ambiguous = 0;     // several hypotheses and nothing to decide
+  size_t dropped_conflict = 0;      // its label's vote is not among its hypotheses
+  size_t dropped_flat_angle = 0;    // ray too flat to the laser plane
+  size_t dropped_other_camera = 0;  // another camera sees the place at a better angle
   size_t dropped_stripe_end = 0;
   size_t dropped_outlier = 0;
-  size_t double_bounce = 0;        // triangulated through both mirrors
+  size_t double_bounce = 0;  // triangulated through both mirrors
   size_t points = 0;
   std::vector<size_t> points_per_camera;  // by FrameRecord::camera
   std::vector<size_t> points_per_view;    // by PointView

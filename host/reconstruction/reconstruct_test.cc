@@ -68,12 +68,13 @@ Sweep RenderSweep(const nlohmann::json& changes, int first_frame, int last_frame
         if (p.material != virtual_cabinet::Material::kSubject) continue;
         sweep.truth[{camera, frame, p.u}].push_back(p);
         ++sweep.truth_points;
-        const bool detected = std::any_of(record.peaks.begin(), record.peaks.end(), [&](const Peak& k) {
-          return k.u == p.u && std::abs(k.v - p.v) < 1.0;
-        });
+        const bool detected =
+            std::any_of(record.peaks.begin(), record.peaks.end(),
+                        [&](const Peak& k) { return k.u == p.u && std::abs(k.v - p.v) < 1.0; });
         // The last ray segment's direction: from the camera, or its mirror image, to the point.
         Eigen::Vector3d eye = cam.CenterInWorld();
-        for (int m : virtual_cabinet::MirrorPath(p.view)) eye = sweep.scene.mirrors[m].plane.ReflectPoint(eye);
+        for (int m : virtual_cabinet::MirrorPath(p.view))
+          eye = sweep.scene.mirrors[m].plane.ReflectPoint(eye);
         const double sin_angle = std::abs((p.point_in_world - eye).normalized().z());
         if (detected && sin_angle > std::sin(10 * M_PI / 180)) ++sweep.truth_reconstructable;
       }
@@ -131,7 +132,8 @@ std::optional<BoxDistance> DistanceToCuboid(const Scene& scene, const Eigen::Vec
         best.distance = d;
         best.normal = world_from_local.col(axis) * sign;
         const int other = 1 - axis;
-        best.near_edge = std::abs(local[other]) > half[other] - 5 || std::abs(local.z()) > half.z() - 5;
+        best.near_edge =
+            std::abs(local[other]) > half[other] - 5 || std::abs(local.z()) > half.z() - 5;
       }
     }
   }
@@ -178,12 +180,12 @@ TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
   EXPECT_EQ(s.laser_height.source, "panels");
   EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
   const Score score = ScoreAgainstTruth(sweep, r.cloud);
-  std::printf("%zu points, %zu matched, %zu wrong, %zu of %zu truth found (%zu reconstructable); "
-              "box rms %.4f max %.4f mm over %zu; normals off %zu\n%s",
-              score.points, score.matched, score.wrong, score.found_right, sweep.truth_points,
-              sweep.truth_reconstructable,
-              score.rms_mm, score.max_mm, score.box_points, score.normals_off,
-              SummaryText(s).c_str());
+  std::printf(
+      "%zu points, %zu matched, %zu wrong, %zu of %zu truth found (%zu reconstructable); "
+      "box rms %.4f max %.4f mm over %zu; normals off %zu\n%s",
+      score.points, score.matched, score.wrong, score.found_right, sweep.truth_points,
+      sweep.truth_reconstructable, score.rms_mm, score.max_mm, score.box_points, score.normals_off,
+      SummaryText(s).c_str());
   // Every laser and every view of the cuboid is there, and right.
   for (size_t k = 0; k < 3; ++k) EXPECT_GT(s.points_per_laser.at(k), 1000u) << k;
   for (int v = 0; v < 3; ++v) EXPECT_GT(s.points_per_view.at(v), 1000u) << v;
@@ -338,7 +340,8 @@ TEST(Reconstruct, IcpTakesBackAViewMovedOffTheOthers) {
       CloudPoint p;
       const Eigen::Vector3d q = on_surface(azimuth, elevation);
       p.point_in_world = q.cast<float>();
-      const Eigen::Vector3d n = ((q - Eigen::Vector3d(0, 0, 1200)).array() / radii.array().square()).matrix();
+      const Eigen::Vector3d n =
+          ((q - Eigen::Vector3d(0, 0, 1200)).array() / radii.array().square()).matrix();
       p.normal = n.normalized().cast<float>();
       // Front half directly, the back and right side through the right mirror, overlapping.
       const double degrees = azimuth * 180 / M_PI;
