@@ -85,6 +85,20 @@ TEST(ReconstructCli, AnotherCalibrationIsRefusedUnlessAllowed) {
   EXPECT_NE(refused.err.find("mirrorscan: calibration mismatch"), std::string::npos) << refused.err;
   EXPECT_NE(refused.err.find("--calibration-mismatch-ok"), std::string::npos) << refused.err;
   EXPECT_FALSE(fs::exists(d / "other.ply"));
+  // An archive recording the calibration as a device does (its file's SHA-256).
+  const Result device_like = RunMirrorscan(
+      "sim scan --scene " + std::string(MIRRORSCAN_SOURCE_DIR) +
+          "/boards/virtual/scenes/mannequin.json --frames 2 --no-images --calibration " +
+          (d / "other.json").string() + " --peaks " + (d / "device.mscan").string() + " --out " +
+          (d / "device").string(),
+      d);
+  ASSERT_EQ(device_like.exit_code, 0) << device_like.err;
+  const Result refused_sha = RunMirrorscan(
+      "reconstruct " + (d / "device.mscan").string() + " --calibration " +
+          (d / "sim/calibration.json").string() + " --out " + (d / "device.ply").string(),
+      d);
+  EXPECT_EQ(refused_sha.exit_code, 1);
+  EXPECT_NE(refused_sha.err.find("calibration_sha256"), std::string::npos) << refused_sha.err;
   const Result allowed = RunMirrorscan(args + " --calibration-mismatch-ok", d);
   EXPECT_EQ(allowed.exit_code, 0) << allowed.err;
   EXPECT_NE(allowed.err.find("warning: calibration mismatch accepted"), std::string::npos)

@@ -221,7 +221,9 @@ void NormalEquations(const std::vector<PanelPoint>& points, const std::vector<do
     if (columns.offset[p.panel] >= 0)
       row(columns.offset[p.panel]) = -(w.z() + a * w.x() + b * w.y());
     normal_matrix->selfadjointView<Eigen::Lower>().rankUpdate(row);
-    *rhs += row * p.point_in_world.z();
+    // A tilt that is not an unknown is a given one (0 unless LaserHeightOptions::normal).
+    const Eigen::Vector3d& x = p.point_in_world;
+    *rhs += row * (columns.tilt >= 0 ? x.z() : x.z() + a * x.x() + b * x.y());
   }
   normal_matrix->triangularView<Eigen::StrictlyUpper>() = normal_matrix->transpose();
 }

@@ -175,7 +175,10 @@ Score ScoreAgainstTruth(const Sweep& sweep, const PointCloud& cloud) {
 
 TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
   const Sweep& sweep = CuboidSweep();
-  const Reconstruction r = Reconstruct(sweep.archive, sweep.calibration);
+  // Every camera's points, so that every truth point can be found.
+  ReconstructOptions every_camera;
+  every_camera.prefer_camera_ratio = 0;
+  const Reconstruction r = Reconstruct(sweep.archive, sweep.calibration, every_camera);
   const ReconstructSummary& s = r.summary;
   EXPECT_EQ(s.laser_height.source, "panels");
   EXPECT_TRUE(s.warnings.empty()) << s.warnings.front();
@@ -231,6 +234,12 @@ TEST(Reconstruct, FiltersAreSwitchable) {
   // Averaging 3×3 neighbours cuts the noise on the faces.
   EXPECT_LT(ScoreAgainstTruth(sweep, filtered.cloud).rms_mm,
             0.8 * ScoreAgainstTruth(sweep, unfiltered.cloud).rms_mm);
+  // Merging prefers the camera that meets the planes squarer where both see a place.
+  EXPECT_GT(filtered.summary.dropped_other_camera, 0u);
+  ReconstructOptions every_camera;
+  every_camera.prefer_camera_ratio = 0;
+  EXPECT_EQ(
+      Reconstruct(sweep.archive, sweep.calibration, every_camera).summary.dropped_other_camera, 0u);
   ReconstructOptions ends;
   ends.drop_stripe_ends = true;
   const Reconstruction trimmed = Reconstruct(sweep.archive, sweep.calibration, ends);
