@@ -1,7 +1,9 @@
 #include "firmware/scan/drive_monitor.h"
 
+#include <algorithm>
 #include <cmath>
 #include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -27,11 +29,11 @@ class ClockDrive final : public hal::SlideDrive {
   void Start(double) override {}
   void ResetFault() override {}
   double Position() override {
-    // The drive latches its position halfway through the exchange.
-    std::this_thread::sleep_for(exchange_ / 2);
-    const double x = TruePositionAt(hal::SteadyNowNs());
-    std::this_thread::sleep_for(exchange_ / 2);
-    return x;
+    // The drive latches its position halfway through the exchange (taken from the
+    // exchange's real ends, so a late wake-up on a loaded machine moves both together).
+    const int64_t begin = hal::SteadyNowNs();
+    std::this_thread::sleep_for(exchange_);
+    return TruePositionAt((begin + hal::SteadyNowNs()) / 2);
   }
   hal::SlideStatus Status() override {
     std::this_thread::sleep_for(exchange_);
@@ -52,17 +54,20 @@ TEST(DriveMonitor, ReadbackOfAFrameAfterTheNewestSampleDoesNotLag) {
   std::this_thread::sleep_for(milliseconds(120));  // a history of ~10 samples
   // Frames exposed at random moments between polls, read at once (before the next poll),
   // as the sequencer's worker does.
-  double worst_mm = 0.0;
+  std::vector<double> errors_mm;
   for (int i = 0; i < 40; ++i) {
     std::this_thread::sleep_for(milliseconds(3 + i % 7));
     const int64_t exposure = hal::SteadyNowNs();
-    const double error = monitor.PositionAt(exposure) - drive.TruePositionAt(exposure);
-    worst_mm = std::max(worst_mm, std::abs(error));
+    errors_mm.push_back(std::abs(monitor.PositionAt(exposure) - drive.TruePositionAt(exposure)));
   }
-  // Holding the newest sample would be up to a period + an exchange behind: 1.8 mm at
-  // 150 mm/s. Extrapolated from the last samples it is within jitter of the stamps.
-  std::printf("worst readback error %.3f mm over 40 frames at 150 mm/s\n", worst_mm);
-  EXPECT_LT(worst_mm, 0.3);
+  std::sort(errors_mm.begin(), errors_mm.end());
+  // Holding the newest sample is on average half a period + the status exchange behind
+  // (~1 mm at 150 mm/s, up to 1.8). Extrapolated, only the stamps' jitter is left; the
+  // median is judged, as a loaded machine's late wake-ups hit single samples.
+  const double median = errors_mm[errors_mm.size() / 2];
+  std::printf("readback error over 40 frames at 150 mm/s: median %.3f mm, max %.3f mm\n", median,
+              errors_mm.back());
+  EXPECT_LT(median, 0.25);
 }
 
 TEST(DriveMonitor, ExtrapolationStopsAFewPeriodsAfterTheNewestSample) {

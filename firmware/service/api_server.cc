@@ -244,6 +244,7 @@ int ApiServer::Start(const std::string& listen) {
   } else if (!server_->bind_to_port(host, bound)) {
     throw std::runtime_error("cannot listen on " + listen + " (address in use or not local?)");
   }
+  server_->WidenBacklog(128);
   thread_ = std::thread([this] {
     server_->listen_after_bind();
     listen_ended_ = true;

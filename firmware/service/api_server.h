@@ -35,12 +35,12 @@ struct ApiServerOptions {
   // Larger bodies get 413 before a byte of them is read, chunked ones as soon as they
   // pass it (a calibration is ~10 kB).
   size_t max_body_bytes = 4u << 20;
-  ConnectionLimits connections;  // per client, in total, deadlines (connection_guard.h)
+  ConnectionLimits connections{};  // per client, in total, deadlines (connection_guard.h)
   // Live streams (archive follow and events) at once; each holds a connection, so this
   // stays below connections.total. More get 503.
   int max_streams = 4;
-  std::chrono::milliseconds follow_poll{25};  // how often a follow looks for new bytes
-  FailedTokenLimiter::Options failed_tokens;  // wrong tokens per client before 429
+  std::chrono::milliseconds follow_poll{25};    // how often a follow looks for new bytes
+  FailedTokenLimiter::Options failed_tokens{};  // wrong tokens per client before 429
   // Below this much free space the status says the disk is full (a scan needs ~10 MB
   // per 100 mm of sweep).
   uint64_t min_free_bytes = 64u << 20;

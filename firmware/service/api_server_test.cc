@@ -768,7 +768,9 @@ TEST_F(ApiServerTest, BodiesOverTheLimitAreRefusedBeforeOrWhileRead) {
   while (sent < (64u << 20) && SendAll(chunked, chunk)) sent += 0x10000;
   reply = ReadReply(chunked);
   ::close(chunked);
-  EXPECT_LT(sent, 16u << 20) << "the server kept reading";
+  // 4 MiB read, then at most 16 MiB discarded while the refusal is read, plus what the
+  // loopback socket buffers hold: never the whole 64 MiB.
+  EXPECT_LT(sent, 32u << 20) << "the server kept reading";
   EXPECT_GE(sent, 4u << 20);
   EXPECT_EQ(reply.rfind("HTTP/1.1 413", 0), 0u) << reply.substr(0, 200);
   // No Content-Length and no Transfer-Encoding (`curl -X POST`): no body, answered at once.
@@ -799,7 +801,8 @@ TEST_F(ApiServerTest, WrongTokensAreRateLimitedPerAddress) {
   int forbidden = 0;
   int limited = 0;
   for (int i = 0; i < 30; ++i) {
-    auto res = Client().Get("/api/v1/calibration", Auth("wrong-token-number-" + std::to_string(i)));
+    auto res = Client().Delete("/api/v1/scans/20990101T000000Z-0001",
+                               Auth("wrong-token-number-" + std::to_string(i)));
     ASSERT_TRUE(res);
     (res->status == 403 ? forbidden : limited) += 1;
     if (res->status == 429) {

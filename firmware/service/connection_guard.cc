@@ -76,7 +76,9 @@ class DeadlineStream : public httplib::Stream {
   // A request already in the buffer (pipelined after the previous one) counts as readable.
   bool Buffered() const { return buffer_begin_ != buffer_end_; }
   ssize_t write(const char* ptr, size_t size) override {
-    if (!Wait(POLLOUT, Clock::now() + write_timeout_)) return -1;
+    // As httplib's stream: a peer that has closed its side ends the response (and with it
+    // a live stream nobody will ask to end).
+    if (!is_writable()) return -1;
     for (;;) {
       const ssize_t n = ::send(fd_, ptr, size, MSG_NOSIGNAL);
       if (n >= 0 || errno != EINTR) return n;
@@ -183,13 +185,19 @@ ConnectionTable::Admission ConnectionTable::Admit(const std::string& client, int
     return Admission::kClientFull;
   }
   if (static_cast<int>(entries_.size()) >= limits_.total) {
-    // Make room: close the connection that has waited longest for a request. Its own
-    // thread sees the shutdown and releases it; until then the count is one over.
+    // Make room: close an idle connection of the client holding the most, the one that
+    // has waited longest among them, so a client with few connections (the one asking
+    // for /status) is the last to lose one. Its own thread sees the shutdown and
+    // releases it; until then the count is one over.
     auto oldest = entries_.end();
+    int oldest_share = 0;
     for (auto it = entries_.begin(); it != entries_.end(); ++it) {
-      if (it->second.idle && it->second.fd >= 0 &&
-          (oldest == entries_.end() || it->second.idle_since < oldest->second.idle_since)) {
+      if (!it->second.idle || it->second.fd < 0) continue;
+      const int share = per_client_[it->second.client];
+      if (oldest == entries_.end() || share > oldest_share ||
+          (share == oldest_share && it->second.idle_since < oldest->second.idle_since)) {
         oldest = it;
+        oldest_share = share;
       }
     }
     if (oldest == entries_.end()) {
@@ -266,6 +274,12 @@ GuardedServer::GuardedServer(const ConnectionLimits& limits) : limits_(limits), 
   set_read_timeout(seconds(limits_.body_timeout), 0);
   set_write_timeout(seconds(limits_.write_timeout), 0);
   set_keep_alive_timeout(seconds(limits_.header_timeout));
+}
+
+void GuardedServer::WidenBacklog(int backlog) {
+  // httplib listens with a backlog of 5: clients reconnecting in a burst overflow it, and
+  // a dropped SYN costs the next client a 1 s retransmission. listen() again resizes it.
+  ::listen(svr_sock_, backlog);
 }
 
 void GuardedServer::HeadersComplete() {

@@ -6,8 +6,9 @@
 // trickling sockets starve it. GuardedServer (guarded_server.h) replaces its loop:
 //  - admission when the connection is taken: at most `per_client` connections per client
 //    address (more get an immediate 503 and are closed) and `total` in all; at the total
-//    the oldest connection that is only waiting for a request (idle keep-alive, or headers
-//    not complete yet) is closed to make room, so a new client is always served;
+//    a connection that is only waiting for a request (idle keep-alive, or headers not
+//    complete yet) is closed to make room: the longest-waiting one of the client holding
+//    the most, so a new client is always served;
 //  - a deadline for the wait and the request line + headers together (`header_timeout`),
 //    then one for the body (`body_timeout`), instead of httplib's per-read timeout that a
 //    byte every few seconds resets;
@@ -44,7 +45,8 @@ class ConnectionTable {
 
   enum class Admission { kAdmitted, kClientFull, kStopping };
   // On kAdmitted `id` names the connection for the calls below. When the total is
-  // reached, the oldest idle connection's socket is shut down (its thread then ends it).
+  // reached, an idle connection's socket is shut down (its thread then ends it): the
+  // longest idle of the client with the most connections.
   Admission Admit(const std::string& client, int fd, uint64_t& id);
   void SetIdle(uint64_t id, bool idle);
   void Release(uint64_t id);

@@ -63,6 +63,22 @@ TEST(ConnectionTable, AtTheTotalTheLongestIdleConnectionMakesRoom) {
   EXPECT_EQ(table.evicted(), 1u);
 }
 
+TEST(ConnectionTable, TheClientHoldingTheMostLosesOneFirst) {
+  ConnectionLimits limits;
+  limits.per_client = 3;
+  limits.total = 3;
+  ConnectionTable table(limits);
+  SocketPair lone, heavy1, heavy2, fresh;
+  uint64_t id = 0;
+  ASSERT_EQ(table.Admit("lone", lone.fds[0], id), ConnectionTable::Admission::kAdmitted);
+  ASSERT_EQ(table.Admit("heavy", heavy1.fds[0], id), ConnectionTable::Admission::kAdmitted);
+  ASSERT_EQ(table.Admit("heavy", heavy2.fds[0], id), ConnectionTable::Admission::kAdmitted);
+  ASSERT_EQ(table.Admit("new", fresh.fds[0], id), ConnectionTable::Admission::kAdmitted);
+  EXPECT_FALSE(lone.ShutDown());  // older, but its client holds only one
+  EXPECT_TRUE(heavy1.ShutDown());
+  EXPECT_FALSE(heavy2.ShutDown());
+}
+
 TEST(ConnectionTable, AllBusyRefusesAndStopShutsEverythingDown) {
   ConnectionLimits limits;
   limits.per_client = 1;

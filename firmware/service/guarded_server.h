@@ -14,6 +14,8 @@ class GuardedServer : public httplib::Server {
   explicit GuardedServer(const ConnectionLimits& limits);
   ConnectionTable& connections() { return table_; }
   const ConnectionLimits& limits() const { return limits_; }
+  // After binding: a listen backlog of `backlog` instead of httplib's 5.
+  void WidenBacklog(int backlog);
 
   // For handlers on the connection's own thread: the headers are in, so the body deadline
   // starts now and the connection is no longer idle (pre-routing calls this).
