@@ -3,7 +3,10 @@
 // Downloads cut mid-way (TcpCutProxy) must resume to identical bytes; a followed stream
 // must equal the finished archive; a corrupted download must be refused.
 
+#include <atomic>
 #include <fstream>
+#include <thread>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -209,13 +212,14 @@ TEST_F(DeviceApiTest, CliScanWaitThenFetchGivesTheArchiveByteForByte) {
   EXPECT_EQ(started.at("state"), "done");
   EXPECT_EQ(started.at("frames"), 100);
 
-  const CommandResult list = Run("device list --json --host " + Host());
+  const CommandResult list = Run("device list --json --host " + Host() + " --token " + kToken);
   ASSERT_EQ(list.exit_code, 0) << list.err;
   EXPECT_EQ(json::parse(list.out).at(0).at("id"), id);
 
   // Through a proxy that drops the first connection: resumed, verified, ID.mscan here.
   TcpCutProxy proxy(port_, 100000, 1);
-  const CommandResult fetch = Run("device fetch " + id + " --host " + Host(proxy.port()));
+  const CommandResult fetch =
+      Run("device fetch " + id + " --host " + Host(proxy.port()) + " --token " + kToken);
   ASSERT_EQ(fetch.exit_code, 0) << fetch.err;
   EXPECT_NE(fetch.err.find("verified, resumed 1x"), std::string::npos) << fetch.err;
   EXPECT_EQ(ReadFile(dir_ / "host" / (id + ".mscan")), ReadFile(store_->Path(id)));
@@ -224,6 +228,48 @@ TEST_F(DeviceApiTest, CliScanWaitThenFetchGivesTheArchiveByteForByte) {
   ASSERT_EQ(status.exit_code, 0) << status.err;
   EXPECT_NE(status.out.find("board virtual"), std::string::npos) << status.out;
   EXPECT_NE(status.out.find("done"), std::string::npos) << status.out;
+}
+
+TEST_F(DeviceApiTest, CliScanWaitPollsWhenEveryStreamSlotIsTaken) {
+  // Four event streams (the server's limit) held by other clients.
+  std::atomic<bool> release{false};
+  std::atomic<int> holding{0};
+  std::vector<std::thread> holders;
+  for (int i = 0; i < 4; ++i) {
+    holders.emplace_back([&] {
+      DeviceClient client = Client();
+      bool counted = false;
+      client.Events([&](const protocol::ScanEventMessage&) {
+        if (!counted) ++holding;
+        counted = true;
+        return !release;
+      });
+    });
+  }
+  for (int i = 0; i < 500 && holding < 4; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_EQ(holding, 4);
+  const CommandResult scan =
+      Run("device scan --wait --json --host " + Host() + " --token " + kToken);
+  EXPECT_EQ(scan.exit_code, 0) << scan.err;
+  EXPECT_EQ(json::parse(scan.out).value("state", ""), "done") << scan.out;
+  release = true;
+  CompletedScan();  // its events let the holders see `release`
+  for (auto& t : holders) t.join();
+}
+
+TEST_F(DeviceApiTest, CliAbortStopsTheRunningScan) {
+  const std::string id = Client().StartScan();
+  const CommandResult abort = Run("device abort --json --host " + Host() + " --token " + kToken);
+  ASSERT_EQ(abort.exit_code, 0) << abort.err;
+  EXPECT_EQ(json::parse(abort.out).value("aborted", ""), id);
+  control_->Join();
+  EXPECT_EQ(store_->Get(id).state, store::ScanState::kAborted);
+  const CommandResult again = Run("device abort --host " + Host() + " --token " + kToken);
+  EXPECT_NE(again.exit_code, 0);
+  EXPECT_NE(again.err.find("no scan is running"), std::string::npos) << again.err;
+  const CommandResult denied = Run("device abort --host " + Host());
+  EXPECT_NE(denied.exit_code, 0);
 }
 
 TEST_F(DeviceApiTest, CliScanFollowStreamsTheArchiveLive) {
@@ -277,7 +323,8 @@ TEST_F(DeviceApiTest, CliCalibrationAndCapture) {
       Run("device calibration put calibration.json --json --host " + Host(), auth);
   ASSERT_EQ(put.exit_code, 0) << put.err;
   EXPECT_EQ(json::parse(put.out).at("sha256"), protocol::Sha256::HexOfFile(calibration));
-  const CommandResult get = Run("device calibration get --out back.json --host " + Host());
+  const CommandResult get =
+      Run("device calibration get --out back.json --host " + Host() + " --token " + kToken);
   ASSERT_EQ(get.exit_code, 0) << get.err;
   EXPECT_EQ(ReadFile(dir_ / "host" / "back.json"), ReadFile(calibration));
 

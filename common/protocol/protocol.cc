@@ -39,14 +39,19 @@ void from_json(const nlohmann::json& j, ScanProgress& v) {
 }
 
 void to_json(nlohmann::json& j, const DiskUse& v) {
-  j = {
-      {"total_bytes", v.total_bytes}, {"free_bytes", v.free_bytes}, {"scans_bytes", v.scans_bytes}};
+  j = {{"total_bytes", v.total_bytes},
+       {"free_bytes", v.free_bytes},
+       {"scans_bytes", v.scans_bytes},
+       {"full", v.full},
+       {"problem", v.problem}};
 }
 
 void from_json(const nlohmann::json& j, DiskUse& v) {
   v.total_bytes = j.value("total_bytes", uint64_t{0});
   v.free_bytes = j.value("free_bytes", uint64_t{0});
   v.scans_bytes = j.value("scans_bytes", uint64_t{0});
+  v.full = j.value("full", false);
+  v.problem = j.value("problem", "");
 }
 
 void to_json(nlohmann::json& j, const DeviceStatus& v) {
@@ -124,6 +129,8 @@ std::string_view ErrorCode(int http_status) {
       return "uri_too_long";
     case 415:
       return "unsupported_media_type";
+    case 429:
+      return "too_many_requests";
     case 416:
       return "range_not_satisfiable";
     case 503:

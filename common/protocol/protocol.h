@@ -46,6 +46,10 @@ struct DiskUse {
   uint64_t total_bytes = 0;
   uint64_t free_bytes = 0;
   uint64_t scans_bytes = 0;  // archives and metadata in the store
+  // Too little room to start a scan, or the store could not write its metadata; `problem`
+  // says which and that deleting scans (which needs no free space) makes room.
+  bool full = false;
+  std::string problem;
 };
 
 // GET /api/v1/status

@@ -48,6 +48,9 @@ constexpr const char* kUsageText = R"(usage: mirrorscand --board BOARD.json --da
   --listen HOST:PORT  the device API's address (default: board.json service.listen;
                       port 0 takes any free port, which the log names)
   --scene FILE        virtual boards only: the scene to render instead of virtual.scene
+  --interlock-state FILE
+                      virtual boards only: mirror the laser interlock's state (the
+                      monostable's last trigger) into FILE for outside observers
   --scan-on-start     start one scan as soon as the daemon is ready (origin "test")
   --exit-after-scan   exit once a scan has ended (0 complete, 1 fault or aborted)
   --log-level LEVEL   trace, debug, info (default), warn, error
@@ -62,6 +65,7 @@ struct Args {
   std::filesystem::path data_dir;
   std::string listen;
   std::filesystem::path scene;
+  std::optional<std::filesystem::path> interlock_state;
   bool scan_on_start = false;
   bool exit_after_scan = false;
   std::string log_level = "info";
@@ -91,6 +95,8 @@ std::optional<Args> ParseArgs(int argc, char** argv) {
       args.listen = value();
     } else if (flag == "--scene") {
       args.scene = value();
+    } else if (flag == "--interlock-state") {
+      args.interlock_state = value();
     } else if (flag == "--scan-on-start") {
       args.scan_on_start = true;
     } else if (flag == "--exit-after-scan") {
@@ -202,6 +208,7 @@ int Run(const Args& args, const sigset_t& signals) {
   try {
     board::DeviceOptions device_options;
     device_options.scene = args.scene;
+    device_options.interlock_state_file = args.interlock_state;
     devices = board::MakeBoardDevices(config, device_options);
   } catch (const std::exception& e) {
     spdlog::error("{}: {}", args.board.string(), e.what());
@@ -217,6 +224,13 @@ int Run(const Args& args, const sigset_t& signals) {
     sequencer_devices.cameras.push_back({config.cameras[i].name, devices.cameras[i].get()});
   }
   sequencer_devices.lasers = devices.gpio.lasers.get();
+  sequencer_devices.interlock = devices.gpio.interlock.get();
+  if (sequencer_devices.interlock == nullptr) {
+    spdlog::warn(
+        "{}: no gpio.interlock: nothing outside this process turns the lasers off "
+        "if it freezes (docs/boards.md)",
+        args.board.string());
+  }
   sequencer_devices.led = devices.gpio.led.get();
   sequencer_devices.button = devices.gpio.button.get();
   sequencer_devices.drive = devices.drive.get();

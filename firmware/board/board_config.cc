@@ -158,7 +158,7 @@ ServiceConfig ParseService(const JsonReader& service) {
     s.token_file = NonEmptyString(service, "token_file");
     if (s.token_file.is_relative()) service.Fail("token_file", "expected an absolute path");
   }
-  s.auth_reads = service.Bool("auth_reads", false);
+  s.auth_reads = service.Bool("auth_reads", true);
   return s;
 }
 

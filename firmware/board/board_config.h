@@ -58,7 +58,9 @@ struct ServiceConfig {
   std::string token;
   // A real board's token: generated at first start (mode 0600), then read at every start.
   std::filesystem::path token_file;
-  bool auth_reads = false;  // also require the token for GET requests
+  // GET requests (scans, archives, events, calibration) need the token too; only a lab
+  // that wants open reads sets it false (docs/device-api.md says what that exposes).
+  bool auth_reads = true;
 };
 
 inline constexpr const char* kServiceTokenRule = "16 to 256 characters of A-Z a-z 0-9 - . _ ~";

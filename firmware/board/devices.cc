@@ -58,7 +58,10 @@ std::unique_ptr<hal::Camera> MakeCamera(const BoardConfig& config, const BoardCa
   const auto slide_at = [sim](int64_t exposure_ns) {
     return sim->State().model.PositionAt(exposure_ns);
   };
-  return devices.cabinet->MakeCamera(camera.scene_camera, slide_at, [lasers] {
+  // A laser emits while its line is driven and the interlock's pulse runs.
+  const hal::VirtualMonostable* interlock = devices.virtual_interlock;
+  return devices.cabinet->MakeCamera(camera.scene_camera, slide_at, [lasers, interlock] {
+    if (interlock != nullptr && !interlock->OutputHigh(hal::SteadyNowNs())) return false;
     return std::any_of(lasers.begin(), lasers.end(), [](const auto& line) {
       return hal::ActiveLevelLine::ToActive(line.first->driven(), line.second);
     });
@@ -78,8 +81,10 @@ BoardDevices MakeBoardDevices(const BoardConfig& config, const DeviceOptions& op
   BoardDevices devices;
   devices.drive = MakeDrive(config, devices);
 
-  hal::GpioLines lines = hal::MakeGpioLines(config.gpio, config.gpio.backend);
+  hal::GpioLines lines =
+      hal::MakeGpioLines(config.gpio, config.gpio.backend, options.interlock_state_file);
   if (config.gpio.backend == hal::GpioBackend::kVirtual) {
+    devices.virtual_interlock = dynamic_cast<hal::VirtualMonostable*>(lines.interlock.line.get());
     for (auto& laser : lines.lasers) {
       devices.virtual_lasers.push_back(dynamic_cast<hal::VirtualGpioLine*>(laser.line.get()));
     }

@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "boards/virtual/drive_sim/drive_sim.h"
@@ -11,6 +12,7 @@
 #include "firmware/hal/gpio_factory.h"
 #include "firmware/hal/slide_drive.h"
 #include "firmware/hal/virtual/virtual_gpio_line.h"
+#include "firmware/hal/virtual/virtual_monostable.h"
 
 namespace mirrorscan::board {
 
@@ -37,6 +39,8 @@ struct DeviceOptions {
   // Replaces board.json's virtual.scene (virtual boards only), e.g. the calibration
   // target scene for calibration captures.
   std::filesystem::path scene;
+  // Virtual boards: mirror the laser interlock's state here (VirtualMonostable).
+  std::optional<std::filesystem::path> interlock_state_file;
 };
 
 // Every device of a board, built from its BoardConfig. Members are destroyed cameras
@@ -48,6 +52,7 @@ struct BoardDevices {
   // gpio.backend "virtual": the lines, for the daemon's button hook and for tests.
   std::vector<hal::VirtualGpioLine*> virtual_lasers;
   hal::VirtualGpioLine* virtual_button = nullptr;
+  hal::VirtualMonostable* virtual_interlock = nullptr;  // gates the virtual lasers' light
   bool button_active_low = false;
   std::unique_ptr<VirtualCabinet> cabinet;
   std::vector<std::unique_ptr<hal::Camera>> cameras;  // board order, configured

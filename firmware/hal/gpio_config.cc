@@ -18,7 +18,7 @@ GpioLineConfig ReadLine(const JsonReader& r) {
 }  // namespace
 
 GpioConfig ParseGpioConfig(const JsonReader& gpio) {
-  gpio.AllowOnly({"backend", "chip", "lasers", "led", "button"});
+  gpio.AllowOnly({"backend", "chip", "lasers", "led", "button", "interlock"});
   GpioConfig c;
   c.backend = gpio.Choice("backend", {"gpiod", "virtual"}) == "gpiod" ? GpioBackend::kGpiod
                                                                       : GpioBackend::kVirtual;
@@ -54,6 +54,17 @@ GpioConfig ParseGpioConfig(const JsonReader& gpio) {
   c.button = ReadLine(button);
   c.debounce_ms = button.Integer("debounce_ms", 20, 1, 1000);
   claim(button, c.button);
+
+  if (gpio.Has("interlock")) {
+    const JsonReader interlock = gpio.Object("interlock");
+    interlock.AllowOnly({"line", "pulse_ms"});
+    GpioLineConfig line = ReadLine(interlock);
+    claim(interlock, line);
+    c.interlock = line;
+    // Above 50 ms a frozen process would keep the lasers on longer than the safety case
+    // allows; below 20 ms a loaded control loop (10 ms tick) would trip it while scanning.
+    c.interlock_pulse_ms = interlock.Integer("pulse_ms", std::nullopt, 20, 50);
+  }
   return c;
 }
 

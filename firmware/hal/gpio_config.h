@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,13 @@ struct GpioConfig {
   GpioLineConfig led;
   GpioLineConfig button;
   int debounce_ms = 20;  // the button's
+  // The laser interlock (docs/boards.md): the trigger input of a retriggerable monostable
+  // whose output gates every laser's enable; the lasers only light while the firmware's
+  // control loop keeps pulsing it. `interlock_pulse_ms` is the monostable's pulse as built
+  // (its RC); the virtual board models that pulse. Absent on a gpiod board: no interlock
+  // (the daemon warns). Virtual boards always have one (default pulse 45 ms).
+  std::optional<GpioLineConfig> interlock;
+  int interlock_pulse_ms = 45;
 };
 
 // Parses and validates the "gpio" object; errors are ConfigError naming the key

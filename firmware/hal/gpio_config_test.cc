@@ -93,5 +93,29 @@ TEST(GpioConfigTest, ErrorsNameTheKey) {
             std::string::npos);
 }
 
+TEST(GpioConfigTest, TheInterlockIsReadAndItsPulseBounded) {
+  nlohmann::json board = Example();
+  board["gpio"]["interlock"] = {{"line", 25}, {"pulse_ms", 40}};
+  const GpioConfig c = ParseGpioConfig(JsonReader(board, "board.json").Object("gpio"));
+  ASSERT_TRUE(c.interlock.has_value());
+  EXPECT_EQ(c.interlock->line, 25);
+  EXPECT_EQ(c.interlock_pulse_ms, 40);
+  EXPECT_FALSE(ParseGpioConfig(JsonReader(Example(), "board.json").Object("gpio")).interlock);
+  EXPECT_EQ(ErrorAfter([](auto& g) {
+              g["interlock"] = {{"line", 25}, {"pulse_ms", 60}};
+            }),
+            "board.json: gpio.interlock.pulse_ms: must be in [20, 50], got 60");
+  EXPECT_EQ(ErrorAfter([](auto& g) {
+              g["interlock"] = {{"line", 17}, {"pulse_ms", 45}};
+            }),
+            "board.json: gpio.interlock.line: line 17 is also gpio.lasers[0].line");
+  for (const char* pi : {"rpi4", "rpi5"}) {
+    const GpioConfig shipped =
+        LoadGpioConfig(std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/" + pi + "/board.json");
+    ASSERT_TRUE(shipped.interlock.has_value()) << pi;
+    EXPECT_LE(shipped.interlock_pulse_ms, 50) << pi;
+  }
+}
+
 }  // namespace
 }  // namespace mirrorscan::hal

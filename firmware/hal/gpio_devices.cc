@@ -252,4 +252,16 @@ std::string GpioButton::last_error() const {
   return last_error_;
 }
 
+GpioLaserInterlock::GpioLaserInterlock(OwnedGpioLine trigger, std::chrono::milliseconds pulse)
+    : trigger_(std::move(trigger)), pulse_(pulse) {}
+
+void GpioLaserInterlock::Kick() noexcept {
+  try {
+    trigger_.line->SetValue(ActiveLevelLine::ToPhysical(true, trigger_.active_low));
+    trigger_.line->SetValue(ActiveLevelLine::ToPhysical(false, trigger_.active_low));
+  } catch (const std::exception&) {
+    // No pulse: the monostable runs out and the lasers go dark, as they should.
+  }
+}
+
 }  // namespace mirrorscan::hal

@@ -81,6 +81,22 @@ class GpioLed final : public Led {
   std::thread thread_;
 };
 
+// The laser interlock's trigger (docs/boards.md): each Kick() is one pulse (a rising
+// edge) into a retriggerable monostable whose output gates every laser's enable, so the
+// lasers go dark `pulse` after the last kick whatever the process or the OS does. The
+// sequencer's control loop kicks it every tick. Kick() never throws: a line that cannot
+// be driven just stops the pulses, which is the safe direction.
+class GpioLaserInterlock final : public LaserInterlock {
+ public:
+  GpioLaserInterlock(OwnedGpioLine trigger, std::chrono::milliseconds pulse);
+  void Kick() noexcept override;
+  std::chrono::milliseconds pulse() const { return pulse_; }
+
+ private:
+  OwnedGpioLine trigger_;
+  const std::chrono::milliseconds pulse_;
+};
+
 // Button on one GPIO input line with edge events, debounced by Debouncer.
 class GpioButton final : public Button {
  public:

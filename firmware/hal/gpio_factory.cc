@@ -6,6 +6,7 @@
 #include "firmware/hal/gpio_line.h"
 #include "firmware/hal/gpiod/gpiod_line.h"
 #include "firmware/hal/virtual/virtual_gpio_line.h"
+#include "firmware/hal/virtual/virtual_monostable.h"
 
 namespace mirrorscan::hal {
 namespace {
@@ -28,7 +29,8 @@ std::unique_ptr<GpioLine> MakeLine(const GpioConfig& config, GpioBackend backend
 
 }  // namespace
 
-GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend) {
+GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend,
+                        const std::optional<std::filesystem::path>& interlock_state_file) {
   GpioLines lines;
   for (size_t i = 0; i < config.lasers.size(); ++i) {
     lines.lasers.push_back(
@@ -38,6 +40,15 @@ GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend) {
   lines.led = {MakeLine(config, backend, config.led, true, "led"), config.led.active_low};
   lines.button = {MakeLine(config, backend, config.button, false, "button"),
                   config.button.active_low};
+  if (backend == GpioBackend::kVirtual) {
+    lines.interlock = {
+        std::make_unique<VirtualMonostable>(std::chrono::milliseconds(config.interlock_pulse_ms),
+                                            interlock_state_file),
+        false};
+  } else if (config.interlock) {
+    lines.interlock = {MakeLine(config, backend, *config.interlock, true, "interlock"),
+                       config.interlock->active_low};
+  }
   return lines;
 }
 
@@ -47,6 +58,10 @@ GpioDevices MakeGpioDevices(const GpioConfig& config, GpioLines lines) {
   d.led = std::make_unique<GpioLed>(std::move(lines.led));
   d.button = std::make_unique<GpioButton>(std::move(lines.button),
                                           std::chrono::milliseconds(config.debounce_ms));
+  if (lines.interlock.line) {
+    d.interlock = std::make_unique<GpioLaserInterlock>(
+        std::move(lines.interlock), std::chrono::milliseconds(config.interlock_pulse_ms));
+  }
   return d;
 }
 

@@ -1,6 +1,8 @@
 #pragma once
 
+#include <filesystem>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "firmware/hal/gpio_config.h"
@@ -13,20 +15,24 @@ struct GpioLines {
   std::vector<OwnedGpioLine> lasers;  // index = laser number
   OwnedGpioLine led;
   OwnedGpioLine button;
+  OwnedGpioLine interlock;  // null line: the board has none
 };
 
 // Requests every line of `config` from `backend` (normally config.backend). Outputs start
 // at their inactive level (lasers off, LED dark). kGpiod failing is a HardwareError
 // naming chip and line: never a silent fallback to kVirtual. With kVirtual the lines are
 // VirtualGpioLine (firmware/hal/virtual), named "laser[i]", "led", "button"; the button
-// idles released.
-GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend);
+// idles released; the interlock is always there, a VirtualMonostable of the configured
+// pulse (mirrored to `interlock_state_file` when given).
+GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend,
+                        const std::optional<std::filesystem::path>& interlock_state_file = {});
 
 // The devices built on those lines.
 struct GpioDevices {
   std::unique_ptr<GpioLaserBank> lasers;
   std::unique_ptr<GpioLed> led;
   std::unique_ptr<GpioButton> button;
+  std::unique_ptr<GpioLaserInterlock> interlock;  // null: the board has none
 };
 GpioDevices MakeGpioDevices(const GpioConfig& config, GpioLines lines);
 

@@ -26,4 +26,13 @@ class LaserBank {
   virtual bool SafeOff() noexcept = 0;
 };
 
+// The lasers' hardware interlock (docs/boards.md): a retriggerable monostable gating every
+// laser's enable. Kick() restarts its pulse; without kicks the lasers go dark a pulse
+// after the last one, whatever the software does. Never throws.
+class LaserInterlock {
+ public:
+  virtual ~LaserInterlock() = default;
+  virtual void Kick() noexcept = 0;
+};
+
 }  // namespace mirrorscan::hal

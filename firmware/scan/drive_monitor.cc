@@ -1,5 +1,6 @@
 #include "firmware/scan/drive_monitor.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -9,6 +10,11 @@
 namespace mirrorscan::scan {
 namespace {
 constexpr size_t kHistory = 512;  // 5 s at 10 ms
+// Past the newest sample the position is extrapolated at the velocity of the last few
+// samples, for at most this many poll periods (a stopped or silent drive is not
+// extrapolated into the distance).
+constexpr size_t kVelocitySamples = 4;
+constexpr int64_t kMaxExtrapolationPeriods = 3;
 }  // namespace
 
 DriveMonitor::DriveMonitor(hal::SlideDrive& drive, std::chrono::nanoseconds period)
@@ -34,8 +40,11 @@ void DriveMonitor::Run() {
     sample.request_ns = begin_ns;
     try {
       sample.status = drive_.Status();
+      // Stamped at the middle of the position exchange alone: the status exchange before
+      // it would date the position up to a whole exchange early.
+      const int64_t position_begin_ns = hal::SteadyNowNs();
       sample.position_mm = drive_.Position();
-      sample.time_ns = (begin_ns + hal::SteadyNowNs()) / 2;
+      sample.time_ns = (position_begin_ns + hal::SteadyNowNs()) / 2;
     } catch (const std::exception& e) {
       error = e.what();
     }
@@ -75,7 +84,30 @@ double DriveMonitor::PositionAt(int64_t time_ns) const {
   std::lock_guard lock(mutex_);
   if (history_.empty()) return std::numeric_limits<double>::quiet_NaN();
   if (time_ns <= history_.front().time_ns) return history_.front().position_mm;
-  if (time_ns >= history_.back().time_ns) return history_.back().position_mm;
+  if (time_ns >= history_.back().time_ns) {
+    // A frame exposed after the newest sample (the next poll has not come yet): the
+    // least-squares velocity of the last few samples carries the position on.
+    const DriveSample& newest = history_.back();
+    const size_t n = std::min(kVelocitySamples, history_.size());
+    if (n < 2) return newest.position_mm;
+    double mean_t = 0.0, mean_x = 0.0;
+    for (size_t i = history_.size() - n; i < history_.size(); ++i) {
+      mean_t += static_cast<double>(history_[i].time_ns - newest.time_ns);
+      mean_x += history_[i].position_mm;
+    }
+    mean_t /= static_cast<double>(n);
+    mean_x /= static_cast<double>(n);
+    double stt = 0.0, stx = 0.0;
+    for (size_t i = history_.size() - n; i < history_.size(); ++i) {
+      const double dt = static_cast<double>(history_[i].time_ns - newest.time_ns) - mean_t;
+      stt += dt * dt;
+      stx += dt * (history_[i].position_mm - mean_x);
+    }
+    if (stt <= 0.0) return newest.position_mm;
+    const int64_t ahead =
+        std::min<int64_t>(time_ns - newest.time_ns, kMaxExtrapolationPeriods * period_.count());
+    return newest.position_mm + stx / stt * static_cast<double>(ahead);
+  }
   // Newest samples are the likely ones: search from the back.
   for (size_t i = history_.size() - 1; i > 0; --i) {
     const DriveSample& a = history_[i - 1];

@@ -13,8 +13,8 @@
 
 namespace mirrorscan::scan {
 
-// One answer of the drive: its status and position readback, stamped with the steady
-// clock at the middle of the exchange.
+// One answer of the drive: its status and position readback, the position stamped with
+// the steady clock at the middle of its own exchange.
 struct DriveSample {
   int64_t request_ns = 0;  // when the exchange began: later than a command sent before it
   int64_t time_ns = 0;
@@ -40,8 +40,9 @@ class DriveMonitor {
   int64_t last_good_ns() const;
   // The last link error, "" after a good answer.
   std::string last_error() const;
-  // The position at `time_ns`, linear between the two samples around it (or the nearest
-  // one at the ends of the history); NaN without samples.
+  // The position at `time_ns`: linear between the two samples around it; after the newest
+  // one, extrapolated at the last few samples' velocity (at most 3 periods ahead); the
+  // oldest before the history. NaN without samples.
   double PositionAt(int64_t time_ns) const;
 
  private:

@@ -215,6 +215,7 @@ void Sequencer::Loop() {
     }
     if (stopping) break;
     loop_heartbeat_ns_ = hal::SteadyNowNs();
+    if (devices_.interlock != nullptr) devices_.interlock->Kick();
     try {
       Step();
     } catch (const std::exception& e) {

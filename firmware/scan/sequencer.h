@@ -38,6 +38,9 @@ struct SequencerDevices {
   };
   std::vector<NamedCamera> cameras;  // index = camera number in the archive
   hal::LaserBank* lasers = nullptr;
+  // Kicked by the control loop every tick (null: the board has none). Only the loop kicks
+  // it, so a stuck loop darkens the lasers as surely as a frozen process.
+  hal::LaserInterlock* interlock = nullptr;
   hal::Led* led = nullptr;
   hal::Button* button = nullptr;
   hal::SlideDrive* drive = nullptr;

@@ -32,6 +32,7 @@
 #include "firmware/hal/modbus/modbus_slide_drive.h"
 #include "firmware/hal/replay/replay_camera.h"
 #include "firmware/hal/virtual/virtual_gpio_line.h"
+#include "firmware/hal/virtual/virtual_monostable.h"
 
 namespace mirrorscan::scan {
 namespace {
@@ -131,6 +132,7 @@ class SequencerTest : public ::testing::Test {
       laser_lines_.push_back(dynamic_cast<hal::VirtualGpioLine*>(laser.line.get()));
     }
     button_line_ = dynamic_cast<hal::VirtualGpioLine*>(lines.button.line.get());
+    interlock_ = dynamic_cast<hal::VirtualMonostable*>(lines.interlock.line.get());
     gpio_ = hal::MakeGpioDevices(gpio, std::move(lines));
 
     for (int i = 0; i < 2; ++i) {
@@ -172,6 +174,7 @@ class SequencerTest : public ::testing::Test {
     SequencerDevices devices;
     devices.cameras = {{"upper", cameras_[0].get()}, {"lower", cameras_[1].get()}};
     devices.lasers = gpio_.lasers.get();
+    devices.interlock = gpio_.interlock.get();
     devices.led = gpio_.led.get();
     devices.button = gpio_.button.get();
     devices.drive = drive_.get();
@@ -192,6 +195,7 @@ class SequencerTest : public ::testing::Test {
       return s.state == SequencerState::kSweeping && s.position_mm > kSweepStart + mm;
     });
   }
+  hal::VirtualMonostable* interlock_ = nullptr;
   bool LasersLow() const {
     for (const auto* line : laser_lines_) {
       if (line->driven()) return false;
@@ -551,6 +555,28 @@ TEST_F(SequencerTest, CaptureWhileIdle) {
   } catch (const ScanControlError& e) {
     EXPECT_EQ(e.kind(), ScanControlError::Kind::kInvalidArgument);
   }
+}
+
+TEST_F(SequencerTest, TheControlLoopKeepsTheLaserInterlockRunningThroughASweep) {
+  ASSERT_NE(interlock_, nullptr);
+  MakeSequencer();
+  sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitSweptPast(5.0));
+  // Sampled every ~1 ms for 0.5 s: the pulse never ran out while the lasers were on.
+  int dark = 0, samples = 0;
+  for (const auto end = std::chrono::steady_clock::now() + milliseconds(500);
+       std::chrono::steady_clock::now() < end; ++samples) {
+    if (!interlock_->OutputHigh(hal::SteadyNowNs())) ++dark;
+    std::this_thread::sleep_for(std::chrono::microseconds(1000));
+  }
+  EXPECT_EQ(dark, 0) << "of " << samples;
+  // Without kicks (the sequencer gone: a stand-in for a stuck loop) it runs out a pulse
+  // after the last one.
+  sequencer_.reset();
+  const int64_t last = interlock_->last_trigger_ns();
+  EXPECT_FALSE(interlock_->OutputHigh(last + interlock_->pulse().count()));
+  std::this_thread::sleep_for(interlock_->pulse());
+  EXPECT_FALSE(interlock_->OutputHigh(hal::SteadyNowNs()));
 }
 
 }  // namespace

@@ -3,9 +3,12 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <condition_variable>
 #include <deque>
 #include <functional>
+#include <regex>
 #include <stdexcept>
 #include <vector>
 
@@ -15,6 +18,7 @@
 #include "common/config/json_reader.h"
 #include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
+#include "firmware/service/guarded_server.h"
 
 namespace mirrorscan::service {
 namespace {
@@ -176,6 +180,13 @@ std::string FormatEvent(const scan::ScanEvent& event) {
   return "event: " + message.type + "\ndata: " + json(message).dump() + "\n\n";
 }
 
+// A body follows the headers (httplib's own test is not in its public header).
+bool HasBody(const httplib::Request& req) {
+  if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) return true;
+  const std::string length = req.get_header_value("Content-Length");
+  return !length.empty() && length.find_first_not_of('0') != std::string::npos;
+}
+
 json ParseBodyObject(const httplib::Request& req, bool allow_empty) {
   if (req.body.empty()) {
     if (allow_empty) return json::object();
@@ -202,12 +213,13 @@ ApiServer::ApiServer(store::ScanStore& store, scan::ScanControl& control,
       calibration_(calibration),
       token_(std::move(token)),
       options_(std::move(options)),
-      server_(std::make_unique<httplib::Server>()) {
+      server_(std::make_unique<GuardedServer>(options_.connections)),
+      failed_tokens_(options_.failed_tokens) {
   if (!board::IsValidServiceToken(token_)) {
     throw std::invalid_argument(std::string("API token: expected ") + board::kServiceTokenRule);
   }
-  if (options_.max_streams < 1 || options_.threads <= options_.max_streams) {
-    throw std::invalid_argument("ApiServerOptions: need 1 <= max_streams < threads");
+  if (options_.max_streams < 1 || options_.connections.total <= options_.max_streams) {
+    throw std::invalid_argument("ApiServerOptions: need 1 <= max_streams < connections.total");
   }
   Route();
 }
@@ -232,6 +244,7 @@ int ApiServer::Start(const std::string& listen) {
   } else if (!server_->bind_to_port(host, bound)) {
     throw std::runtime_error("cannot listen on " + listen + " (address in use or not local?)");
   }
+  server_->WidenBacklog(128);
   thread_ = std::thread([this] {
     server_->listen_after_bind();
     listen_ended_ = true;
@@ -245,30 +258,66 @@ int ApiServer::Start(const std::string& listen) {
 
 void ApiServer::Stop() {
   stopping_ = true;
+  server_->connections().ShutdownAll();  // idle keep-alive waits end now, not at their deadline
   server_->stop();
   if (thread_.joinable()) thread_.join();
 }
 
 void ApiServer::Route() {
-  httplib::Server& s = *server_;
-  const int threads = options_.threads;
-  s.new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
+  GuardedServer& s = *server_;
   s.set_payload_max_length(options_.max_body_bytes);
-  s.set_read_timeout(options_.io_timeout.count(), 0);
-  s.set_write_timeout(options_.io_timeout.count(), 0);
-  s.set_keep_alive_timeout(5);
 
-  // cpp-httplib 0.11 would cut every response body (even JSON errors) by a Range header
-  // after the handler ran; only the archive honours Range, and it does so itself.
-  s.set_pre_routing_handler([](const Request& req, Response&) {
+  // Runs once the headers are in and before any byte of a body is read: the token, the
+  // failed-token limit and the declared size are checked here, so a client without the
+  // token never gets its body read at all.
+  s.set_pre_routing_handler([this](const Request& req, Response& res) {
+    GuardedServer::HeadersComplete();
+    // cpp-httplib 0.11 would cut every response body (even JSON errors) by a Range
+    // header after the handler ran; only the archive honours Range, and does so itself.
     const_cast<Request&>(req).ranges.clear();
+    // RFC 9112 6.3: a request with neither Content-Length nor Transfer-Encoding has no
+    // body (`curl -X POST` without -d); httplib 0.11 would read one until the socket
+    // closes.
+    if (!req.has_header("Content-Length") && !req.has_header("Transfer-Encoding")) {
+      const_cast<Request&>(req).headers.emplace("Content-Length", "0");
+    }
+    if (!Authorize(req, res) || !BodyFits(req, res)) {
+      if (HasBody(req)) GuardedServer::CloseAfterResponse();
+      return httplib::Server::HandlerResponse::Handled;
+    }
     return httplib::Server::HandlerResponse::Unhandled;
+  });
+  // "Expect: 100-continue": the same checks before the client is told to send the body.
+  s.set_expect_100_continue_handler([this](const Request& req, Response& res) {
+    GuardedServer::HeadersComplete();
+    if (!Authorize(req, res) || !BodyFits(req, res)) {
+      GuardedServer::CloseAfterResponse();
+      return res.status;
+    }
+    return 100;
   });
   // Errors httplib answers itself (no route, body too large, bad request line) get the
   // same JSON body as ours.
-  s.set_error_handler(httplib::Server::HandlerWithResponse([](const Request&, Response& res) {
+  s.set_error_handler(httplib::Server::HandlerWithResponse([this](const Request& req,
+                                                                  Response& res) {
     if (!res.body.empty() || res.content_provider_ || res.status < 400) {
       return httplib::Server::HandlerResponse::Unhandled;
+    }
+    if (res.status == 416) {
+      // httplib refuses a Range it cannot parse before routing; the archive's size is
+      // still owed (RFC 9110 15.5.17).
+      static const std::regex kArchive(std::string(protocol::kApiPrefix) +
+                                       "/scans/([^/]+)/archive");
+      std::smatch match;
+      if (std::regex_match(req.path, match, kArchive) && protocol::IsValidScanId(match[1].str()) &&
+          (!NeedsToken(req) || req.has_header("Authorization"))) {
+        try {
+          res.set_header("Content-Range",
+                         "bytes */" + std::to_string(fs::file_size(store_.Path(match[1].str()))));
+        } catch (const std::exception&) {
+          // no such scan: the 416 stands without a size
+        }
+      }
     }
     const std::string message = res.status == 404   ? "no such endpoint"
                                 : res.status == 413 ? "request body too large"
@@ -277,7 +326,14 @@ void ApiServer::Route() {
     SendError(res, res.status, message);
     return httplib::Server::HandlerResponse::Handled;
   }));
-  s.set_post_routing_handler([](const Request&, Response& res) { SetVersionHeader(res); });
+  s.set_post_routing_handler([](const Request&, Response& res) {
+    SetVersionHeader(res);
+    if (GuardedServer::ClosingAfterResponse()) {
+      res.headers.erase("Keep-Alive");
+      res.headers.erase("Connection");
+      res.set_header("Connection", "close");
+    }
+  });
 
   using Member = void (ApiServer::*)(const Request&, Response&);
   const auto wrap = [this](Member member) {
@@ -297,38 +353,106 @@ void ApiServer::Route() {
       }
     };
   };
+  // Bodies are read here, not by httplib: its own reader has no limit on chunked bodies.
+  const auto with_body = [this, wrap](Member member) {
+    return [this, handler = wrap(member)](const Request& req, Response& res,
+                                          const httplib::ContentReader& read) {
+      std::string body;
+      bool too_large = false;
+      const bool complete = read([&](const char* data, size_t length) {
+        if (body.size() + length > options_.max_body_bytes) {
+          too_large = true;
+          return false;
+        }
+        body.append(data, length);
+        return true;
+      });
+      if (!complete) {
+        GuardedServer::CloseAfterResponse();  // the rest of the body is never read
+        SendError(res, too_large ? 413 : 400,
+                  too_large ? "request body too large (limit " +
+                                  std::to_string(options_.max_body_bytes) + " bytes)"
+                            : "request body: incomplete or malformed chunked encoding");
+        return;
+      }
+      const_cast<Request&>(req).body = std::move(body);
+      handler(req, res);
+    };
+  };
   const std::string api(protocol::kApiPrefix);
   const std::string scan = api + "/scans/([^/]+)";
   s.Get(api + "/status", wrap(&ApiServer::HandleStatus));
   s.Get(api + "/scans", wrap(&ApiServer::HandleListScans));
   s.Post(api + "/scans", wrap(&ApiServer::HandleStartScan));
+  s.Post(api + "/scans", with_body(&ApiServer::HandleStartScan));
+  s.Post(api + "/scans/current/abort", wrap(&ApiServer::HandleAbort));
+  s.Post(api + "/scans/current/abort", with_body(&ApiServer::HandleAbort));
   s.Get(scan, wrap(&ApiServer::HandleGetScan));
   s.Delete(scan, wrap(&ApiServer::HandleDeleteScan));
   s.Get(scan + "/archive", wrap(&ApiServer::HandleArchive));
   s.Get(api + "/events", wrap(&ApiServer::HandleEvents));
   s.Get(api + "/calibration", wrap(&ApiServer::HandleGetCalibration));
   s.Put(api + "/calibration", wrap(&ApiServer::HandlePutCalibration));
+  s.Put(api + "/calibration", with_body(&ApiServer::HandlePutCalibration));
   s.Post(api + "/captures", wrap(&ApiServer::HandleCapture));
+  s.Post(api + "/captures", with_body(&ApiServer::HandleCapture));
 }
 
-bool ApiServer::Authorize(const Request& req, Response& res, bool mutating) const {
-  if (!mutating && !board_.service.auth_reads) return true;
+bool ApiServer::NeedsToken(const Request& req) const {
+  if (req.method != "GET" && req.method != "HEAD") return true;
+  if (req.path == std::string(protocol::kApiPrefix) + "/status") return false;
+  return board_.service.auth_reads;
+}
+
+bool ApiServer::Authorize(const Request& req, Response& res) {
+  if (!NeedsToken(req)) return true;
+  const std::string& client = req.remote_addr;
+  if (const int64_t wait_ms = failed_tokens_.RetryAfterMs(client); wait_ms > 0) {
+    res.set_header("Retry-After", std::to_string((wait_ms + 999) / 1000));
+    SendError(res, 429,
+              "too many wrong tokens from this address; retry in " +
+                  std::to_string((wait_ms + 999) / 1000) + " s");
+    return false;
+  }
   const std::string header = req.get_header_value("Authorization");
-  constexpr std::string_view kBearer = "Bearer ";
-  if (header.rfind(kBearer, 0) != 0) {
+  // RFC 9110 11.1: the scheme is case-insensitive; one or more spaces follow it.
+  const size_t space = header.find(' ');
+  std::string scheme = header.substr(0, space);
+  std::transform(scheme.begin(), scheme.end(), scheme.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (space == std::string::npos || scheme != "bearer") {
     res.set_header("WWW-Authenticate", "Bearer realm=\"mirrorscan\"");
     SendError(res, 401, "missing bearer token (Authorization: Bearer <token>)");
     return false;
   }
-  if (!protocol::SecretsEqual(std::string_view(header).substr(kBearer.size()), token_)) {
+  const size_t start = header.find_first_not_of(' ', space);
+  const std::string_view presented =
+      start == std::string::npos ? std::string_view() : std::string_view(header).substr(start);
+  if (!protocol::SecretsEqual(presented, token_)) {
+    failed_tokens_.RecordFailure(client);
     SendError(res, 403, "wrong bearer token");
     return false;
   }
   return true;
 }
 
-void ApiServer::HandleStatus(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
+bool ApiServer::BodyFits(const Request& req, Response& res) const {
+  if (!req.has_header("Content-Length")) return true;  // none, or chunked: read with the limit
+  const auto length = ParseUnsigned(req.get_header_value("Content-Length"));
+  if (!length) {
+    SendError(res, 400, "Content-Length: expected a byte count");
+    return false;
+  }
+  if (*length > options_.max_body_bytes) {
+    SendError(res, 413,
+              "request body too large (" + std::to_string(*length) + " bytes; limit " +
+                  std::to_string(options_.max_body_bytes) + ")");
+    return false;
+  }
+  return true;
+}
+
+void ApiServer::HandleStatus(const Request&, Response& res) {
   protocol::DeviceStatus status;
   status.board = board_.board;
   status.firmware_version = options_.firmware_version;
@@ -342,18 +466,27 @@ void ApiServer::HandleStatus(const Request& req, Response& res) {
     status.disk.free_bytes = space.available;
   }
   for (const store::ScanInfo& info : store_.List()) status.disk.scans_bytes += info.bytes;
+  const std::string store_problem = store_.problem();
+  if (!store_problem.empty()) {
+    status.disk.full = true;
+    status.disk.problem = store_problem + "; delete scans to make room (DELETE /api/v1/scans/{id})";
+  } else if (!ec && space.available < options_.min_free_bytes) {
+    status.disk.full = true;
+    status.disk.problem = "disk full: " + std::to_string(space.available >> 20) +
+                          " MiB free, a scan needs " +
+                          std::to_string(options_.min_free_bytes >> 20) +
+                          "; delete scans to make room (DELETE /api/v1/scans/{id})";
+  }
   SendJson(res, 200, status);
 }
 
-void ApiServer::HandleListScans(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
+void ApiServer::HandleListScans(const Request&, Response& res) {
   json scans = json::array();
   for (const store::ScanInfo& info : store_.List()) scans.push_back(ToSummary(info));
   SendJson(res, 200, {{"scans", scans}});
 }
 
 void ApiServer::HandleStartScan(const Request& req, Response& res) {
-  if (!Authorize(req, res, true)) return;
   const json body = ParseBodyObject(req, true);
   if (!body.empty()) throw HttpError(400, "request body: expected {} or no body");
   const std::string id = control_.StartScan("api");
@@ -361,13 +494,26 @@ void ApiServer::HandleStartScan(const Request& req, Response& res) {
   SendJson(res, 201, {{"id", id}});
 }
 
+void ApiServer::HandleAbort(const Request& req, Response& res) {
+  const json body = ParseBodyObject(req, true);
+  const JsonReader r(body, "request body");
+  r.AllowOnly({"reason"});
+  const std::string reason = r.String("reason", "aborted over the API");
+  const scan::ScanStatus status = control_.Status();
+  const bool running = status.state == scan::SequencerState::kHoming ||
+                       status.state == scan::SequencerState::kArming ||
+                       status.state == scan::SequencerState::kSweeping ||
+                       status.state == scan::SequencerState::kFinishing;
+  if (!running) throw HttpError(409, "no scan is running");
+  control_.Abort(reason);
+  SendJson(res, 200, {{"aborted", status.scan_id}});
+}
+
 void ApiServer::HandleGetScan(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
   SendJson(res, 200, ToSummary(store_.Get(ScanIdFrom(req))));
 }
 
 void ApiServer::HandleDeleteScan(const Request& req, Response& res) {
-  if (!Authorize(req, res, true)) return;
   const std::string id = ScanIdFrom(req);
   store_.Delete(id);
   {
@@ -378,7 +524,6 @@ void ApiServer::HandleDeleteScan(const Request& req, Response& res) {
 }
 
 void ApiServer::HandleArchive(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
   const std::string id = ScanIdFrom(req);
   const std::string follow = req.get_param_value("follow");
   if (follow == "1") {
@@ -528,8 +673,7 @@ void ApiServer::FollowArchive(const Request& req, Response& res, const std::stri
       [this](bool) { --streams_; });
 }
 
-void ApiServer::HandleEvents(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
+void ApiServer::HandleEvents(const Request&, Response& res) {
   if (!AcquireStream(res)) return;
   struct Queue {
     std::mutex mutex;
@@ -579,8 +723,7 @@ void ApiServer::HandleEvents(const Request& req, Response& res) {
       });
 }
 
-void ApiServer::HandleGetCalibration(const Request& req, Response& res) {
-  if (!Authorize(req, res, false)) return;
+void ApiServer::HandleGetCalibration(const Request&, Response& res) {
   const auto text = calibration_.Get();
   if (!text) throw HttpError(404, "no calibration stored on this device");
   res.status = 200;
@@ -590,14 +733,12 @@ void ApiServer::HandleGetCalibration(const Request& req, Response& res) {
 }
 
 void ApiServer::HandlePutCalibration(const Request& req, Response& res) {
-  if (!Authorize(req, res, true)) return;
   if (req.body.empty()) throw HttpError(400, "request body: expected calibration.json");
   const std::string sha = calibration_.Put(req.body, "calibration");
   SendJson(res, 200, {{"sha256", sha}});
 }
 
 void ApiServer::HandleCapture(const Request& req, Response& res) {
-  if (!Authorize(req, res, true)) return;
   const json body = ParseBodyObject(req, false);
   const JsonReader r(body, "request body");
   r.AllowOnly({"camera", "lasers_on"});

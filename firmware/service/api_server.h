@@ -18,25 +18,32 @@
 #include "firmware/board/board_config.h"
 #include "firmware/scan/scan_control.h"
 #include "firmware/service/calibration_store.h"
+#include "firmware/service/connection_guard.h"
 #include "firmware/store/scan_store.h"
 
 namespace httplib {
-class Server;
 struct Request;
 struct Response;
 }  // namespace httplib
 
 namespace mirrorscan::service {
 
+class GuardedServer;
+
 struct ApiServerOptions {
   std::string firmware_version;
-  size_t max_body_bytes = 4u << 20;  // larger bodies get 413 (a calibration is ~10 kB)
-  int threads = 8;                   // worker threads (connections served at once)
-  // Live streams (archive follow and events) at once; each holds a worker thread, so
-  // this stays below `threads` and plain requests are always served. More get 503.
+  // Larger bodies get 413 before a byte of them is read, chunked ones as soon as they
+  // pass it (a calibration is ~10 kB).
+  size_t max_body_bytes = 4u << 20;
+  ConnectionLimits connections{};  // per client, in total, deadlines (connection_guard.h)
+  // Live streams (archive follow and events) at once; each holds a connection, so this
+  // stays below connections.total. More get 503.
   int max_streams = 4;
-  std::chrono::milliseconds follow_poll{25};  // how often a follow looks for new bytes
-  std::chrono::seconds io_timeout{10};        // socket read/write timeouts
+  std::chrono::milliseconds follow_poll{25};    // how often a follow looks for new bytes
+  FailedTokenLimiter::Options failed_tokens{};  // wrong tokens per client before 429
+  // Below this much free space the status says the disk is full (a scan needs ~10 MB
+  // per 100 mm of sweep).
+  uint64_t min_free_bytes = 64u << 20;
   // A comment line on a quiet SSE stream: keeps proxies open and finds vanished clients
   // (their listener is dropped at the first failed write).
   std::chrono::milliseconds keepalive_interval{5000};
@@ -63,12 +70,19 @@ class ApiServer {
   using Response = httplib::Response;
 
   void Route();
-  bool Authorize(const Request& req, Response& res, bool mutating) const;
+  // The token check for everything but GET /status (and reads on an open-reads board),
+  // run before a body is read. False with the refusal (401/403/429) in `res`.
+  bool Authorize(const Request& req, Response& res);
+  // Whether `req` needs the token at all.
+  bool NeedsToken(const Request& req) const;
+  // The body limit against Content-Length, before reading; false with a 413 in `res`.
+  bool BodyFits(const Request& req, Response& res) const;
   void HandleStatus(const Request& req, Response& res);
   void HandleListScans(const Request& req, Response& res);
   void HandleStartScan(const Request& req, Response& res);
   void HandleGetScan(const Request& req, Response& res);
   void HandleDeleteScan(const Request& req, Response& res);
+  void HandleAbort(const Request& req, Response& res);
   void HandleArchive(const Request& req, Response& res);
   void ServeArchiveFile(const Request& req, Response& res, const std::string& id);
   void FollowArchive(const Request& req, Response& res, const std::string& id);
@@ -87,7 +101,8 @@ class ApiServer {
   CalibrationStore& calibration_;
   const std::string token_;
   const ApiServerOptions options_;
-  std::unique_ptr<httplib::Server> server_;
+  std::unique_ptr<GuardedServer> server_;
+  FailedTokenLimiter failed_tokens_;
   std::thread thread_;
   std::atomic<bool> stopping_{false};
   std::atomic<bool> listen_ended_{false};

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <httplib.h>
@@ -56,7 +57,8 @@ class ApiServerTest : public ::testing::Test {
     calibration_ = std::make_unique<CalibrationStore>(dir_ / "calibration.json");
     ApiServerOptions options;
     options.firmware_version = "9.8.7";
-    options.io_timeout = io_timeout_;
+    options.connections = limits_;
+    options.connections.write_timeout = io_timeout_;
     // A keep-alive line is how a vanished SSE client is noticed; short here so tests are.
     options.keepalive_interval = std::chrono::milliseconds(200);
     server_ =
@@ -118,7 +120,8 @@ class ApiServerTest : public ::testing::Test {
   std::unique_ptr<CalibrationStore> calibration_;
   std::unique_ptr<ApiServer> server_;
   int port_ = 0;
-  std::chrono::seconds io_timeout_{2};
+  std::chrono::milliseconds io_timeout_{2000};
+  ConnectionLimits limits_;
 };
 
 TEST_F(ApiServerTest, StatusNamesBoardVersionStateAndDisk) {
@@ -412,11 +415,43 @@ TEST_F(ApiServerTest, EveryMutatingEndpointNeedsTheToken) {
 
 TEST_F(ApiServerTest, ReadsNeedTheTokenWhenConfigured) {
   Restart({}, /*auth_reads=*/true);
-  ExpectJsonError(Client().Get("/api/v1/status"), 401, "missing bearer token");
+  const std::string id = CompletedScan();
+  for (const std::string& path : std::vector<std::string>{
+           "/api/v1/scans", "/api/v1/scans/" + id, "/api/v1/scans/" + id + "/archive",
+           "/api/v1/scans/" + id + "/archive?follow=1", "/api/v1/events", "/api/v1/calibration",
+           "/api/v1/nothing-here"}) {
+    SCOPED_TRACE(path);
+    ExpectJsonError(Client().Get(path), 401, "missing bearer token");
+  }
   ExpectJsonError(Client().Get("/api/v1/scans", Auth("wrong-token-wrong-token")), 403, "wrong");
-  auto res = Client().Get("/api/v1/status", Auth());
+  // The status stays open (no personal data in it) so a device can be found and checked.
+  auto status = Client().Get("/api/v1/status");
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  auto res = Client().Get("/api/v1/scans/" + id + "/archive", Auth());
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(res->body, ReadFile(store_->Path(id)));
+}
+
+TEST_F(ApiServerTest, EveryShippedBoardNeedsTheTokenForReads) {
+  for (const char* board : {"virtual", "rpi4", "rpi5"}) {
+    SCOPED_TRACE(board);
+    EXPECT_TRUE(
+        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards" / board / "board.json")
+            .service.auth_reads);
+  }
+}
+
+TEST_F(ApiServerTest, TheBearerSchemeIsCaseInsensitive) {
+  for (const std::string scheme : {"bearer ", "BEARER ", "Bearer   "}) {
+    SCOPED_TRACE(scheme);
+    auto res = Client().Post("/api/v1/scans", {{"Authorization", scheme + kToken}}, "",
+                             "application/json");
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 201) << res->body;
+    control_->Join();
+  }
 }
 
 TEST_F(ApiServerTest, HostileIdsAreRefusedAndTouchNothing) {
@@ -529,6 +564,51 @@ TEST_F(ApiServerTest, UnknownEndpointIsAJson404) {
   ExpectJsonError(Client().Get("/"), 404, "no such endpoint");
 }
 
+// A socket connected to the server from `source` (any 127/8 address is loopback on Linux,
+// so tests can be several clients); -1 on failure. Reads time out after `timeout`.
+int ConnectFrom(int port, const char* source, std::chrono::milliseconds timeout) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  timeval tv{static_cast<time_t>(timeout.count() / 1000),
+             static_cast<suseconds_t>(timeout.count() % 1000 * 1000)};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
+  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
+  sockaddr_in from{};
+  from.sin_family = AF_INET;
+  ::inet_pton(AF_INET, source, &from.sin_addr);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof(from)) != 0 ||
+      ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// What the server sends until it closes or `timeout` passes without a byte.
+std::string ReadReply(int fd) {
+  std::string reply;
+  char buffer[4096];
+  for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0 && reply.size() < (1 << 20);) {
+    reply.append(buffer, static_cast<size_t>(n));
+  }
+  return reply;
+}
+
+// Sends `bytes`; false once the server has closed (EPIPE/ECONNRESET) or a send times out.
+bool SendAll(int fd, const std::string& bytes) {
+  size_t sent = 0;
+  while (sent < bytes.size()) {
+    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) return false;
+    sent += static_cast<size_t>(n);
+  }
+  return true;
+}
+
 // Raw bytes to 127.0.0.1:port; reads whatever comes back (bounded by a short timeout).
 std::string RawExchange(int port, const std::string& request) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
@@ -637,6 +717,182 @@ TEST_F(ApiServerTest, SurvivesThousandsOfMalformedAndConcurrentRequests) {
   EXPECT_EQ(ReadFile(store_->Path(id)), archive_before);
   EXPECT_EQ(ReadFile(dir_ / "scans" / (id + ".json")), meta_before);
   EXPECT_EQ(store_->List().size(), 1u);
+}
+
+TEST_F(ApiServerTest, BodiesWithoutATokenAreNeverRead) {
+  // 1 GB announced, chunked or with a length: the refusal comes before any body byte is
+  // sent, and the connection is closed instead of reading on.
+  for (const std::string& framing :
+       {std::string("Transfer-Encoding: chunked"), std::string("Content-Length: 1000000000")}) {
+    SCOPED_TRACE(framing);
+    const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(SendAll(fd, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\n" + framing +
+                                "\r\nContent-Type: application/json\r\n\r\n"));
+    const std::string reply = ReadReply(fd);  // the server closes: the read ends
+    ::close(fd);
+    EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
+    EXPECT_NE(reply.find("Connection: close"), std::string::npos) << reply;
+  }
+  // Without a token and without a body the answer is 401 too, not "malformed".
+  ExpectJsonError(Client().Post("/api/v1/scans", "", ""), 401, "missing bearer token");
+  // Expect: 100-continue is answered with the refusal, not with "100 Continue".
+  const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  ASSERT_GE(fd, 0);
+  ASSERT_TRUE(SendAll(fd,
+                      "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nContent-Length: "
+                      "100\r\nExpect: 100-continue\r\n\r\n"));
+  const std::string reply = ReadReply(fd);
+  ::close(fd);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
+  EXPECT_FALSE(calibration_->Get().has_value());
+}
+
+TEST_F(ApiServerTest, BodiesOverTheLimitAreRefusedBeforeOrWhileRead) {
+  // A declared length over the limit: 413 at once, with the token.
+  const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  ASSERT_GE(fd, 0);
+  ASSERT_TRUE(SendAll(fd, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
+                              std::string(kToken) + "\r\nContent-Length: 1000000000\r\n\r\n"));
+  std::string reply = ReadReply(fd);
+  ::close(fd);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 413", 0), 0u) << reply;
+  // Chunked, with the token: cut once the body passes 4 MiB, not read to its end.
+  const int chunked = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  ASSERT_GE(chunked, 0);
+  ASSERT_TRUE(
+      SendAll(chunked, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
+                           std::string(kToken) + "\r\nTransfer-Encoding: chunked\r\n\r\n"));
+  const std::string chunk = "10000\r\n" + std::string(0x10000, ' ') + "\r\n";
+  size_t sent = 0;
+  while (sent < (64u << 20) && SendAll(chunked, chunk)) sent += 0x10000;
+  reply = ReadReply(chunked);
+  ::close(chunked);
+  // 4 MiB read, then at most 16 MiB discarded while the refusal is read, plus what the
+  // loopback socket buffers hold: never the whole 64 MiB.
+  EXPECT_LT(sent, 32u << 20) << "the server kept reading";
+  EXPECT_GE(sent, 4u << 20);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 413", 0), 0u) << reply.substr(0, 200);
+  // No Content-Length and no Transfer-Encoding (`curl -X POST`): no body, answered at once.
+  const int bare = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  ASSERT_GE(bare, 0);
+  const auto bare_start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(SendAll(bare, "POST /api/v1/scans HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
+                                std::string(kToken) + "\r\nConnection: close\r\n\r\n"));
+  reply = ReadReply(bare);
+  ::close(bare);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 201", 0), 0u) << reply;
+  EXPECT_LT(std::chrono::steady_clock::now() - bare_start, std::chrono::seconds(2));
+  control_->Join();
+  // A small chunked body with the token is read whole.
+  const int good = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  ASSERT_GE(good, 0);
+  ASSERT_TRUE(SendAll(good, "POST /api/v1/scans HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
+                                std::string(kToken) +
+                                "\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n"
+                                "2\r\n{}\r\n0\r\n\r\n"));
+  reply = ReadReply(good);
+  ::close(good);
+  EXPECT_EQ(reply.rfind("HTTP/1.1 201", 0), 0u) << reply;
+  control_->Join();
+}
+
+TEST_F(ApiServerTest, WrongTokensAreRateLimitedPerAddress) {
+  int forbidden = 0;
+  int limited = 0;
+  for (int i = 0; i < 30; ++i) {
+    auto res = Client().Delete("/api/v1/scans/20990101T000000Z-0001",
+                               Auth("wrong-token-number-" + std::to_string(i)));
+    ASSERT_TRUE(res);
+    (res->status == 403 ? forbidden : limited) += 1;
+    if (res->status == 429) {
+      EXPECT_FALSE(res->get_header_value("Retry-After").empty());
+      ExpectJsonError(res, 429, "too many wrong tokens");
+    }
+  }
+  EXPECT_EQ(forbidden, 10);  // the burst
+  EXPECT_EQ(limited, 20);
+  // Even the right token waits: the limit is on the address, not on a guess.
+  auto res = Client().Post("/api/v1/scans", Auth(), "", "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 429);
+}
+
+TEST_F(ApiServerTest, AbortStopsTheRunningScan) {
+  ExpectJsonError(Client().Post("/api/v1/scans/current/abort", Auth(), "", "application/json"), 409,
+                  "no scan is running");
+  ExpectJsonError(Client().Post("/api/v1/scans/current/abort", "", "application/json"), 401,
+                  "missing bearer token");
+  Restart({.frames = 2000, .frame_interval = std::chrono::milliseconds(5)});
+  const std::string id = StartScan();
+  auto res = Client().Post("/api/v1/scans/current/abort", Auth(), R"({"reason":"operator"})",
+                           "application/json");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200) << res->body;
+  EXPECT_EQ(json::parse(res->body).value("aborted", ""), id);
+  control_->Join();
+  EXPECT_EQ(store_->Get(id).state, store::ScanState::kAborted);
+}
+
+TEST_F(ApiServerTest, AMalformedRangeStillNamesTheArchiveSize) {
+  const std::string id = CompletedScan();
+  const size_t size = fs::file_size(store_->Path(id));
+  // httplib refuses these before routing; the handler refuses the rest.
+  for (const std::string range :
+       {"bytes=abc", "bytes=1-2,", "bytes", "bytes=--1", "bytes=99999999999-", "items=0-1"}) {
+    SCOPED_TRACE(range);
+    auto res = Client().Get("/api/v1/scans/" + id + "/archive", {{"Range", range}});
+    ASSERT_TRUE(res);
+    EXPECT_EQ(res->status, 416);
+    EXPECT_EQ(res->get_header_value("Content-Range"), "bytes */" + std::to_string(size));
+  }
+}
+
+TEST_F(ApiServerTest, ConnectionsArePerAddressBoundedAndDeadlined) {
+  limits_.per_client = 4;
+  limits_.total = 12;
+  limits_.header_timeout = std::chrono::milliseconds(1000);
+  Restart({});
+  // One address holding idle sockets: the fifth is refused at once with a 503.
+  std::vector<int> idle;
+  for (int i = 0; i < 4; ++i)
+    idle.push_back(ConnectFrom(port_, "127.0.0.2", std::chrono::milliseconds(3000)));
+  for (const int fd : idle) ASSERT_GE(fd, 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // all four admitted
+  const int fifth = ConnectFrom(port_, "127.0.0.2", std::chrono::milliseconds(3000));
+  ASSERT_GE(fifth, 0);
+  const std::string refused = ReadReply(fifth);
+  ::close(fifth);
+  EXPECT_EQ(refused.rfind("HTTP/1.1 503", 0), 0u) << refused;
+  // Other addresses fill the total; a new client still gets served (the longest idle
+  // connection makes room), and quickly.
+  std::vector<int> others;
+  for (const char* source : {"127.0.0.3", "127.0.0.4"}) {
+    for (int i = 0; i < 4; ++i)
+      others.push_back(ConnectFrom(port_, source, std::chrono::milliseconds(3000)));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const auto start = std::chrono::steady_clock::now();
+  auto status = Client().Get("/api/v1/status");
+  ASSERT_TRUE(status);
+  EXPECT_EQ(status->status, 200);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(900));
+  // A trickling client (a header byte every 200 ms) is cut at the header deadline.
+  const int trickle = ConnectFrom(port_, "127.0.0.5", std::chrono::milliseconds(3000));
+  ASSERT_GE(trickle, 0);
+  const auto trickle_start = std::chrono::steady_clock::now();
+  const std::string request = "GET /api/v1/status HTTP/1.1\r\nX-Slow: " + std::string(100, 'a');
+  size_t i = 0;
+  for (; i < request.size() && SendAll(trickle, request.substr(i, 1)); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  const double held =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - trickle_start).count();
+  ::close(trickle);
+  EXPECT_LT(i, request.size());
+  EXPECT_LT(held, 3.0);  // 1 s deadline, then the send fails within a few more tries
+  for (const int fd : idle) ::close(fd);
+  for (const int fd : others) ::close(fd);
 }
 
 }  // namespace

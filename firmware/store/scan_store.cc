@@ -29,6 +29,10 @@ struct StoreState {
   mutable std::mutex mu;
   std::map<std::string, ScanHandle*> active;  // guarded by mu
   std::string last_id;                        // guarded by mu
+  // Metadata that could not be written (disk full): what Get and List report until a
+  // write succeeds. Guarded by mu.
+  std::map<std::string, ScanInfo> unsaved;
+  std::string unsaved_error;  // the last such write's error
 };
 
 }  // namespace internal
@@ -205,6 +209,36 @@ void WriteMeta(const fs::path& dir, const ScanInfo& info) {
   WriteFileAtomically(MetaPath(dir, info.id), info.ToJson().dump(2) + "\n");
 }
 
+// Caller holds state.mu. Writes the metadata, or (disk full, I/O error) keeps it in memory
+// so the scan's state is right at once and retries later: recovery never needs free
+// space to finish. False when it was kept in memory.
+bool SaveMeta(internal::StoreState& state, const ScanInfo& info) {
+  try {
+    WriteMeta(state.dir, info);
+    state.unsaved.erase(info.id);
+    return true;
+  } catch (const StoreError& e) {
+    state.unsaved[info.id] = info;
+    state.unsaved_error = e.what();
+    return false;
+  }
+}
+
+// Caller holds state.mu. After space was freed: writes what was kept in memory.
+void RetryUnsaved(internal::StoreState& state) {
+  const auto unsaved = state.unsaved;
+  for (const auto& [id, info] : unsaved) {
+    if (!SaveMeta(state, info)) return;
+  }
+}
+
+// Caller holds state.mu. The metadata of a scan that is not being written.
+std::optional<ScanInfo> StoredInfo(const internal::StoreState& state, const std::string& id) {
+  const auto it = state.unsaved.find(id);
+  if (it != state.unsaved.end()) return it->second;
+  return ReadMeta(state.dir, id);
+}
+
 // Metadata rebuilt from what the reader recovers. A finished archive takes its state from
 // the footer; anything else is "partial" with the recovery report as the reason.
 ScanInfo RecoverInfo(const fs::path& path, const std::string& id, bool renamed,
@@ -237,22 +271,31 @@ ScanInfo RecoverInfo(const fs::path& path, const std::string& id, bool renamed,
 }
 
 // Caller holds state.mu. Best effort: a failure is retried at the next Finish or Open.
-void ApplyRetention(const internal::StoreState& state) {
+// Crash-partial scans count (and go) like finished ones; the scan being written never.
+void ApplyRetention(internal::StoreState& state) {
   if (state.options.keep_finished == 0) return;
   std::vector<std::string> finished;
   std::error_code ec;
+  std::set<std::string> ids;
   for (const auto& entry : fs::directory_iterator(state.dir, ec)) {
     const std::string name = entry.path().filename().string();
     if (!EndsWith(name, kMetaSuffix)) continue;
-    const std::string id = name.substr(0, name.size() - kMetaSuffix.size());
+    ids.insert(name.substr(0, name.size() - kMetaSuffix.size()));
+  }
+  for (const auto& [id, info] : state.unsaved) ids.insert(id);
+  for (const std::string& id : ids) {
     if (!IsValidScanId(id) || state.active.count(id) > 0) continue;
-    const auto info = ReadMeta(state.dir, id);
-    if (info && IsFinished(info->state)) finished.push_back(id);
+    const auto info = StoredInfo(state, id);
+    if (info && (IsFinished(info->state) || info->state == ScanState::kPartial)) {
+      finished.push_back(id);
+    }
   }
   std::sort(finished.rbegin(), finished.rend());
   for (size_t i = state.options.keep_finished; i < finished.size(); ++i) {
     fs::remove(ArchivePath(state.dir, finished[i]), ec);
+    fs::remove(PartialPath(state.dir, finished[i]), ec);
     fs::remove(MetaPath(state.dir, finished[i]), ec);
+    state.unsaved.erase(finished[i]);
   }
   if (finished.size() > state.options.keep_finished) {
     try {
@@ -302,19 +345,20 @@ ScanHandle::ScanHandle(std::shared_ptr<internal::StoreState> state, ScanInfo inf
 ScanHandle::~ScanHandle() {
   if (closed_) return;
   writer_.reset();  // closes the file; what is on disk is what a crash would leave
+  std::optional<ScanInfo> info;
   try {
-    const fs::path partial = PartialPath(state_->dir, id_);
-    ScanInfo info = RecoverInfo(partial, id_, /*renamed=*/false, info_);
-    info.reason = "not finished: " + info.reason;
-    WriteMeta(state_->dir, info);
+    info = RecoverInfo(PartialPath(state_->dir, id_), id_, /*renamed=*/false, info_);
+    info->reason = "not finished: " + info->reason;
   } catch (...) {
-    // Disk full or worse: the next Open marks it from the archive.
+    // Unreadable: the next Open marks it from the archive.
   }
-  Close(false);
+  Close(std::move(info));
 }
 
-void ScanHandle::Close(bool /*finished*/) noexcept {
+void ScanHandle::Close(std::optional<ScanInfo> info) noexcept {
   std::lock_guard<std::mutex> lock(state_->mu);
+  // In the same step as leaving `active`, so no reader ever sees a stale "writing".
+  if (info) SaveMeta(*state_, *info);
   state_->active.erase(id_);
   closed_ = true;
 }
@@ -374,16 +418,15 @@ void ScanHandle::Finish(const nlohmann::json& footer) {
   info.peaks = peaks_;
   info.bytes = bytes_;
   info.footer = footer;
-  // The archive is final from here on: should the metadata fail, Open rebuilds it.
+  // The archive is final from here on: should the metadata fail, it is kept in memory
+  // (and Open rebuilds it from the archive).
   closed_ = true;
-  try {
-    WriteMeta(state_->dir, info);  // fsyncs the directory: covers the rename too
-  } catch (...) {
-    Close(true);
-    throw;
-  }
-  Close(true);
   std::lock_guard<std::mutex> lock(state_->mu);
+  const bool saved = SaveMeta(*state_, info);  // fsyncs the directory: covers the rename too
+  state_->active.erase(id_);
+  if (!saved) {
+    throw StoreError(StoreError::Kind::kIo, "scan " + id_ + ": " + state_->unsaved_error);
+  }
   ApplyRetention(*state_);
 }
 
@@ -435,11 +478,15 @@ std::unique_ptr<ScanStore> ScanStore::Open(const fs::path& dir, ScanStoreOptions
     }
     if (has_archive) {
       if (meta && IsFinished(meta->state)) continue;
-      WriteMeta(dir, RecoverInfo(ArchivePath(dir, id), id, /*renamed=*/true, meta));
+      SaveMeta(*state, RecoverInfo(ArchivePath(dir, id), id, /*renamed=*/true, meta));
     } else {
-      const auto size = fs::file_size(PartialPath(dir, id), ec);
-      if (meta && meta->state == ScanState::kPartial && !ec && meta->bytes == size) continue;
-      WriteMeta(dir, RecoverInfo(PartialPath(dir, id), id, /*renamed=*/false, meta));
+      // Read again at every start even when the size is unchanged: a flipped bit changes
+      // what is readable, not the size.
+      const ScanInfo recovered = RecoverInfo(PartialPath(dir, id), id, /*renamed=*/false, meta);
+      if (meta && meta->state == ScanState::kPartial && meta->ToJson() == recovered.ToJson()) {
+        continue;
+      }
+      SaveMeta(*state, recovered);
     }
   }
   if (removed) SyncDir(dir);
@@ -513,6 +560,7 @@ std::vector<ScanInfo> ScanStore::List() const {
   }
   if (ec) ThrowIo(state_->dir, "cannot list data directory", ec.value());
   for (const auto& [id, handle] : state_->active) ids.insert(id);
+  for (const auto& [id, info] : state_->unsaved) ids.insert(id);
   std::vector<ScanInfo> result;
   for (auto it = ids.rbegin(); it != ids.rend(); ++it) {
     const auto active = state_->active.find(*it);
@@ -523,7 +571,7 @@ std::vector<ScanInfo> ScanStore::List() const {
       info.peaks = h.peaks_;
       info.bytes = h.bytes_;
       result.push_back(std::move(info));
-    } else if (auto info = ReadMeta(state_->dir, *it)) {
+    } else if (auto info = StoredInfo(*state_, *it)) {
       result.push_back(std::move(*info));
     }
   }
@@ -542,7 +590,7 @@ ScanInfo ScanStore::Get(const std::string& id) const {
     info.bytes = h.bytes_;
     return info;
   }
-  auto info = ReadMeta(state_->dir, id);
+  auto info = StoredInfo(*state_, id);
   if (!info) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
   return *info;
 }
@@ -574,8 +622,17 @@ void ScanStore::Delete(const std::string& id) {
     if (ec) ThrowIo(p, "cannot delete", ec.value());
     found = found || removed;
   }
+  found = state_->unsaved.erase(id) > 0 || found;
   if (!found) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
   SyncDir(state_->dir);
+  RetryUnsaved(*state_);  // the space just freed
+}
+
+std::string ScanStore::problem() const {
+  std::lock_guard<std::mutex> lock(state_->mu);
+  if (state_->unsaved.empty()) return "";
+  return "the metadata of " + std::to_string(state_->unsaved.size()) +
+         " scan(s) could not be written (" + state_->unsaved_error + ")";
 }
 
 }  // namespace mirrorscan::store

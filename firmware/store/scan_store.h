@@ -11,7 +11,9 @@
 // States in the metadata: "writing" (a handle is open), "complete", "aborted", "fault"
 // (finished archives: the footer's status), "partial" (never finished: a crash, an
 // abandoned handle or a write error; the reason is the reader's recovery report).
-// Partial archives are never deleted by the store itself, only by Delete.
+// Partial archives count towards the retention limit like finished ones.
+// Metadata that cannot be written (disk full) is kept in memory and reported from there,
+// so opening a store and ending a scan never need free space; problem() says so.
 //
 // Thread-safe: one ScanStore may serve the sequencer and the HTTP threads at once. A
 // ScanHandle is used by one thread at a time.
@@ -22,6 +24,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -74,9 +77,9 @@ struct ScanInfo {
 
 struct ScanStoreOptions {
   uint32_t fsync_every_frames = 30;  // 0: only on Finish
-  // Keep at most this many finished scans (complete, aborted or fault), deleting the
-  // oldest after each Finish and on Open. 0: keep all. Partial scans and the scan being
-  // written are never counted or deleted.
+  // Keep at most this many stored scans (complete, aborted, fault or crash-partial),
+  // deleting the oldest after each Finish and on Open. 0: keep all. The scan being
+  // written is never counted or deleted.
   size_t keep_finished = 0;
   // Wall clock for ids and "created"; tests inject one. Null: system_clock::now.
   std::function<std::chrono::system_clock::time_point()> now;
@@ -111,7 +114,8 @@ class ScanHandle {
   friend class ScanStore;
   ScanHandle(std::shared_ptr<internal::StoreState> state, ScanInfo info,
              std::unique_ptr<ScanFileWriter> writer);
-  void Close(bool finished) noexcept;
+  // Leaves the active set, saving `info` (kept in memory when the disk is full) first.
+  void Close(std::optional<ScanInfo> info) noexcept;
 
   std::shared_ptr<internal::StoreState> state_;
   std::string id_;
@@ -145,6 +149,9 @@ class ScanStore {
   void Delete(const std::string& id);
 
   const std::filesystem::path& dir() const;
+  // Empty, or why some metadata lives only in memory (the disk was full); retried after
+  // each Delete.
+  std::string problem() const;
 
  private:
   explicit ScanStore(std::shared_ptr<internal::StoreState> state);

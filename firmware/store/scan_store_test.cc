@@ -242,7 +242,7 @@ TEST_F(ScanStoreTest, CrashBetweenRenameAndMetadataIsRecovered) {
   EXPECT_EQ(info.frames, 1u);
 }
 
-TEST_F(ScanStoreTest, RetentionKeepsNewestFinishedAndEveryPartial) {
+TEST_F(ScanStoreTest, RetentionKeepsTheNewestStoredScansPartialOnesIncluded) {
   ScanStoreOptions options;
   options.keep_finished = 2;
   auto store = ScanStore::Open(dir_, options);
@@ -257,24 +257,54 @@ TEST_F(ScanStoreTest, RetentionKeepsNewestFinishedAndEveryPartial) {
   const std::string s2 = WriteScan(*store, 1, "aborted");
   const std::string s3 = WriteScan(*store, 1);
   const std::string s4 = WriteScan(*store, 1);
-  EXPECT_THROW(store->Get(s1), StoreError);
-  EXPECT_THROW(store->Get(s2), StoreError);
+  // A crash-partial counts like a finished scan (it is as personal and as large).
+  for (const std::string& gone : {s1, partial, s2}) {
+    EXPECT_THROW(store->Get(gone), StoreError) << gone;
+  }
   EXPECT_FALSE(fs::exists(dir_ / (s1 + ".mscan")));
+  EXPECT_FALSE(fs::exists(dir_ / (partial + ".mscan.partial")));
   EXPECT_EQ(store->Get(s3).state, ScanState::kComplete);
   EXPECT_EQ(store->Get(s4).state, ScanState::kComplete);
-  EXPECT_EQ(store->Get(partial).state, ScanState::kPartial);
+  // The scan being written is never counted or removed.
   EXPECT_EQ(store->Get(writing->id()).state, ScanState::kWriting);
-  writing->Finish(nlohmann::json::object());  // oldest finished one now: goes at once
+  writing->Finish(nlohmann::json::object());  // older than s3 and s4 once finished: goes
   EXPECT_THROW(store->Get(writing->id()), StoreError);
-  EXPECT_EQ(store->List().size(), 3u);
+  EXPECT_EQ(store->List().size(), 2u);
 
   // Retention also applies on Open with a smaller limit.
   options.keep_finished = 1;
   store = ScanStore::Open(dir_, options);
   const auto list = store->List();
-  ASSERT_EQ(list.size(), 2u);
+  ASSERT_EQ(list.size(), 1u);
   EXPECT_EQ(list[0].id, s4);
-  EXPECT_EQ(list[1].id, partial);
+}
+
+TEST_F(ScanStoreTest, APartialWhoseBytesChangedButNotItsSizeIsReadAgainAtOpen) {
+  std::string id;
+  {
+    auto store = ScanStore::Open(dir_);
+    auto h = store->BeginScan({{"device", "test"}});
+    id = h->id();
+    for (uint32_t i = 0; i < 40; ++i) h->AppendFrame(Frame(i, 50));
+  }  // abandoned: partial, 40 frames
+  ASSERT_EQ(ScanStore::Open(dir_)->Get(id).frames, 40u);
+  // Flip one bit in the middle of the archive: same size, fewer readable frames.
+  const fs::path path = dir_ / (id + ".mscan.partial");
+  const auto size = fs::file_size(path);
+  {
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(size / 2));
+    char byte = 0;
+    f.read(&byte, 1);
+    byte = static_cast<char>(byte ^ 0x10);
+    f.seekp(static_cast<std::streamoff>(size / 2));
+    f.write(&byte, 1);
+  }
+  ASSERT_EQ(fs::file_size(path), size);
+  const ScanInfo reread = ScanStore::Open(dir_)->Get(id);
+  EXPECT_EQ(reread.state, ScanState::kPartial);
+  EXPECT_LT(reread.frames, 40u);
+  EXPECT_GT(reread.frames, 5u);
 }
 
 TEST_F(ScanStoreTest, DeleteChecksIdAndRefusesTheScanBeingWritten) {

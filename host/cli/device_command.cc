@@ -32,6 +32,7 @@ struct DeviceOptions {
   std::string id;
   std::string out;
   bool wait = false;
+  std::string reason;  // abort
   bool follow = false;
   std::string camera;
   bool lasers_on = false;
@@ -157,8 +158,8 @@ bool IsEndState(const std::string& state) {
   return state == "done" || state == "fault" || state == "aborted";
 }
 
-// Follows the scan's progress (server-sent events; status polling if the stream drops)
-// until it ends; returns the end state and reason.
+// Follows the scan's progress (server-sent events; status polling when the stream drops
+// or is refused, e.g. all stream slots taken) until it ends; returns the end state.
 protocol::ScanProgress WaitForScan(client::DeviceClient& device, const std::string& id) {
   ProgressBar bar("scan " + id);
   protocol::ScanProgress last;
@@ -171,8 +172,8 @@ protocol::ScanProgress WaitForScan(client::DeviceClient& device, const std::stri
   try {
     device.Events([&](const protocol::ScanEventMessage& e) { return on_progress(e.scan); });
   } catch (const client::DeviceError& e) {
-    if (e.status() != 0) throw;
-    // The event stream dropped: poll until the scan ends.
+    if (e.status() != 0 && e.status() != 503) throw;
+    // The event stream dropped or was refused: poll until the scan ends.
     while (on_progress(device.Status().scan)) {
       std::this_thread::sleep_for(std::chrono::milliseconds(250));
     }
@@ -226,6 +227,12 @@ void Fetch(const DeviceOptions& o) {
   std::fprintf(stderr, "%s: %s, sha256 %s verified%s\n", r.path.string().c_str(),
                Megabytes(r.bytes).c_str(), r.sha256.c_str(),
                r.reconnects > 0 ? (", resumed " + std::to_string(r.reconnects) + "x").c_str() : "");
+}
+
+void Abort(const DeviceOptions& o) {
+  const std::string id = Connect(o).AbortScan(o.reason);
+  if (o.json) return PrintJson({{"aborted", id}});
+  std::printf("aborted %s\n", id.c_str());
 }
 
 void Delete(const DeviceOptions& o) {
@@ -336,6 +343,13 @@ void AddDeviceCommands(CLI::App& app) {
   fetch->add_option("--out", options->out, "output file (default: ID.mscan here)");
   fetch->add_flag("--follow", options->follow, "stream a scan that is still running, live");
   fetch->callback([options] { Fetch(*options); });
+
+  auto* abort = device->add_subcommand(
+      "abort",
+      "Abort the running scan: lasers off, slide stopped, archive kept as \"aborted\" "
+      "(needs the token)");
+  abort->add_option("--reason", options->reason, "recorded in the archive's footer");
+  abort->callback([options] { Abort(*options); });
 
   auto* remove =
       device->add_subcommand("delete", "Delete a scan from the device (needs the token)");

@@ -148,6 +148,18 @@ std::string DeviceClient::StartScan() {
   return j["id"].get<std::string>();
 }
 
+std::string DeviceClient::AbortScan(const std::string& reason) {
+  const json request = reason.empty() ? json::object() : json{{"reason", reason}};
+  const std::string body = Expect2xx(host_port_, "abort scan", [&] {
+    return http_->client.Post(kApi + "/scans/current/abort", request.dump(), "application/json");
+  });
+  const json j = ParseJson(body, "abort scan");
+  if (!j.contains("aborted") || !j["aborted"].is_string()) {
+    throw DeviceError(0, "protocol", "abort scan: the device did not name the scan");
+  }
+  return j["aborted"].get<std::string>();
+}
+
 void DeviceClient::Delete(const std::string& id) {
   if (!protocol::IsValidScanId(id)) throw DeviceError(0, "usage", "not a scan id: " + id);
   Expect2xx(host_port_, "delete " + id,

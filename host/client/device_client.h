@@ -65,6 +65,9 @@ class DeviceClient {
   std::vector<protocol::ScanSummary> List();
   protocol::ScanSummary Get(const std::string& id);
   std::string StartScan();  // the new scan's id
+  // Aborts the running scan (POST /scans/current/abort); returns its id. DeviceError 409
+  // when no scan runs.
+  std::string AbortScan(const std::string& reason = "");
   void Delete(const std::string& id);
 
   // Downloads a finished scan to `out` through `out`.partial: resumes from the partial

@@ -58,6 +58,7 @@ class ChildProcess {
   // The exit code (128 + signal if killed), or -1 after the deadline.
   int Wait(std::chrono::milliseconds deadline = std::chrono::seconds(60));
   void Signal(int signal);
+  pid_t pid() const { return pid_; }
 
  private:
   std::filesystem::path log_;
