@@ -79,8 +79,8 @@ double SpreadCdf(double x, double sigma, double tail) {
   if (tail < 0) return 1.0 - SpreadCdf(-x, sigma, -tail);
   // Phi(x/s) - exp(-x/t + s^2/(2t^2)) Phi(x/s - s/t), with Phi(y) = erfc(-y/sqrt2)/2.
   const double exponent = -x / tail + 0.5 * sigma * sigma / (tail * tail);
-  return gauss - 0.5 * std::exp(exponent) *
-                     std::erfc(-(x / sigma - sigma / tail) / std::numbers::sqrt2);
+  return gauss -
+         0.5 * std::exp(exponent) * std::erfc(-(x / sigma - sigma / tail) / std::numbers::sqrt2);
 }
 
 // Peak of the spread profile relative to the bare sheet's (sheet sigma, the spread's
@@ -89,8 +89,8 @@ double SpreadPeakRatio(double sheet_sigma, double sigma, double tail) {
   const double step = 1e-3 * sigma;
   double peak = 0.0;
   for (double x = -4.0 * sigma; x <= 4.0 * sigma + 4.0 * std::abs(tail); x += step) {
-    peak = std::max(peak, SpreadCdf(x + 0.5 * step, sigma, tail) -
-                              SpreadCdf(x - 0.5 * step, sigma, tail));
+    peak = std::max(
+        peak, SpreadCdf(x + 0.5 * step, sigma, tail) - SpreadCdf(x - 0.5 * step, sigma, tail));
   }
   return peak / step * sheet_sigma * std::sqrt(2.0 * std::numbers::pi);
 }
@@ -340,8 +340,7 @@ void Renderer::BuildCache(int camera) const {
         const auto blur_bin = static_cast<uint16_t>(
             std::min(65535l, std::lround(sensor.BlurAt(s.path_length) / kBlurStepPx)));
         lit_rows[v].push_back({laser_normal.dot(s.hit.point), static_cast<float>(span),
-                               static_cast<float>(gain), static_cast<uint32_t>(index),
-                               blur_bin,
+                               static_cast<float>(gain), static_cast<uint32_t>(index), blur_bin,
                                s.material == Material::kSubject && spread.Active()});
       }
     }
@@ -384,8 +383,7 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
   // overflow SpreadCdf's exponential, so it is dropped).
   const LightSpread& spread = scene_.subject_light_spread;
   const double spread_sigma = std::hypot(sigma, spread.sigma_mm);
-  const double spread_tail =
-      std::abs(spread.tail_mm) < 0.05 * spread_sigma ? 0.0 : spread.tail_mm;
+  const double spread_tail = std::abs(spread.tail_mm) < 0.05 * spread_sigma ? 0.0 : spread.tail_mm;
   const double profile_reach =
       spread.Active() ? std::max(6.0 * sigma, 6.0 * spread_sigma + 10.0 * std::abs(spread_tail))
                       : 6.0 * sigma;
@@ -501,8 +499,8 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
     const int r0 = std::max(0, row_min), r1 = std::min(cache.height, row_max + 1);
     cv::Mat band = laser.rowRange(r0, r1);
     const cv::Mat none = (cv::Mat_<float>(1, 1) << 1.0f);
-    cv::sepFilter2D(band.clone(), band, CV_32F, blurs[0].along_u.t(), none, cv::Point(-1, -1),
-                    0.0, cv::BORDER_CONSTANT);
+    cv::sepFilter2D(band.clone(), band, CV_32F, blurs[0].along_u.t(), none, cv::Point(-1, -1), 0.0,
+                    cv::BORDER_CONSTANT);
   }
   return laser;
 }
@@ -556,7 +554,8 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
   const View views[] = {View::kCenter, View::kLeft, View::kRight, View::kLeftRight,
                         View::kRightLeft};
   const LightSpread& spread = scene_.subject_light_spread;
-  const double sheet = scene_.lasers.sheet_sigma_mm, spread_sigma = std::hypot(sheet, spread.sigma_mm);
+  const double sheet = scene_.lasers.sheet_sigma_mm,
+               spread_sigma = std::hypot(sheet, spread.sigma_mm);
   const double spread_peak =
       spread.Active()
           ? SpreadPeakRatio(sheet, spread_sigma,

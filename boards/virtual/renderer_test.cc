@@ -387,12 +387,12 @@ std::vector<TruthPeak> FlatFacePeaks(const Renderer& renderer, int camera, doubl
   std::vector<TruthPeak> out;
   for (const auto& p : truth) {
     if (p.material != Material::kSubject || p.view != View::kCenter || p.peak_dn < 60 ||
-        std::abs(BoxDistance(renderer.scene(), p.point_in_world)) > 1e-3 || p.v < 20 ||
-        p.v > 748) {
+        std::abs(BoxDistance(renderer.scene(), p.point_in_world)) > 1e-3 || p.v < 20 || p.v > 748) {
       continue;
     }
     bool alone = true, left = false, right = false;
-    for (const TruthPeak* q : by_column[p.u]) alone = alone && (q == &p || std::abs(q->v - p.v) > 25);
+    for (const TruthPeak* q : by_column[p.u])
+      alone = alone && (q == &p || std::abs(q->v - p.v) > 25);
     for (int side : {-1, 1}) {
       for (const TruthPeak* q : by_column[p.u + side]) {
         if (q->laser == p.laser && q->view == p.view && std::abs(q->v - p.v) < 0.1) {

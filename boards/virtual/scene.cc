@@ -265,8 +265,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   }
   // So is "light_spread" (subsurface scattering, e.g. skin).
   if (subject_json.is_object() && subject_json.contains("light_spread")) {
-    const JsonReader spread =
-        JsonReader(subject_json, file_name, "subject").Object("light_spread");
+    const JsonReader spread = JsonReader(subject_json, file_name, "subject").Object("light_spread");
     spread.AllowOnly({"sigma_mm", "tail_mm"});
     scene.subject_light_spread.sigma_mm = spread.Number("sigma_mm", 0.0, 0.0, 20.0);
     scene.subject_light_spread.tail_mm = spread.Number("tail_mm", 0.0, -20.0, 20.0);
