@@ -303,7 +303,8 @@ bool HalfMaxCrossings(const S& s, int first, int last, int n, float half, float*
 // background-subtracted centre of mass over +-kWideWindowSigmas sigma, the window recentred on the
 // estimate twice (a window centred on the integer top would pull the estimate towards it), its end
 // pixels weighted by the part of them inside.
-float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float width, float thr) {
+float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float width, float thr,
+                 float start) {
   const float sigma = width * (1.0f / 2.3548f);
   const int reach = static_cast<int>(std::ceil(3.0f * sigma)) + 1;
   auto mean3 = [&](int first) {
@@ -320,9 +321,10 @@ float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float wid
   const float slope = (right - left) / (x_right - x_left);
   const float base = left - slope * x_left;
   const float half = kWideWindowSigmas * sigma;
-  float centre = 0.5f * static_cast<float>(r0 + r1);
-  // Each pass leaves ~0.23 of the window's offset from the stripe's centre (at +-2 sigma):
-  // recentre until it moves by less than 1e-3 px.
+  // From the middle of the half-maximum crossings (within a few hundredths of a pixel of
+  // the centre), each pass leaves ~0.23 of the window's offset from the stripe's centre (at
+  // +-2 sigma): recentre until it moves by less than 1e-3 px.
+  float centre = start;
   for (int pass = 0; pass < 8; ++pass) {
     const float a = centre - half, b = centre + half;
     float sum = 0, moment = 0;
@@ -470,7 +472,8 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   float t = kNaN;
   if (params.estimator == PeakEstimator::kAdaptive && !profile.flat_top &&
       width >= kWideStripeFwhmPx) {
-    t = WideCentre(search, u, r0, r1, width, thr) - static_cast<float>(lo);
+    t = WideCentre(search, u, r0, r1, width, thr, static_cast<float>(lo) + 0.5f * (xl + xr)) -
+        static_cast<float>(lo);
   }
   if (!std::isfinite(t)) t = Estimate(params.estimator, profile);
   if (!std::isfinite(t) || t < static_cast<float>(first) - 1.5f ||
