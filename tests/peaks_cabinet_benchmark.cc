@@ -1,6 +1,8 @@
 // Peak extraction throughput on 1024×768 frames of the virtual cabinet (the mannequin
-// sweep, both cameras, default sensor), one core: the SIMD extractor, the scalar
-// thresholded centre of mass (the paper's method) and a plain read of every byte.
+// sweep, both cameras, default sensor, and the same with wide stripes), one core: the SIMD
+// extractor, a plain row-major thresholded centre of mass (the fair reference), the
+// paper's centre of mass on the project's scalar column walk and a plain read of every
+// byte. scripts/peaks_speed runs it and prints the ratios.
 #include <benchmark/benchmark.h>
 
 #include <cstdint>
@@ -12,20 +14,28 @@
 namespace mirrorscan {
 namespace {
 
-const std::vector<virtual_cabinet::GrayImage>& Frames() {
-  static const std::vector<virtual_cabinet::GrayImage> frames = [] {
-    const virtual_cabinet::Renderer renderer(virtual_cabinet::Scene::Load(
-        std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/mannequin.json"));
-    std::vector<virtual_cabinet::GrayImage> out;
+// Argument "frames": 0 the cabinet's default frames; 1 wide stripes, the same sweep with
+// the camera blur at 2.4 px (stripe sigma ~2.5 px, FWHM ~5.9 px: defocus, skin).
+const std::vector<virtual_cabinet::GrayImage>& Frames(int64_t kind) {
+  static std::vector<virtual_cabinet::GrayImage> frames[2];
+  if (frames[kind].empty()) {
+    auto scene = virtual_cabinet::Scene::Load(std::string(MIRRORSCAN_SOURCE_DIR) +
+                                              "/boards/virtual/scenes/mannequin.json");
+    if (kind == 1) scene.sensor.blur_px = 2.4;
+    const virtual_cabinet::Renderer renderer(scene);
     for (int camera = 0; camera < 2; ++camera) {
       for (int frame = 15; frame < 300; frame += 25) {
-        out.push_back(renderer.RenderFrame(camera, frame / 30.0, static_cast<uint64_t>(frame)));
+        frames[kind].push_back(
+            renderer.RenderFrame(camera, frame / 30.0, static_cast<uint64_t>(frame)));
       }
     }
-    return out;
-  }();
-  return frames;
+  }
+  return frames[kind];
 }
+
+// Above every unlit surface of these frames (ambient 40 DN x albedo: panels <= 32 DN) by
+// the extractor's default threshold.
+constexpr int kPlainThresholdDn = 50;
 
 ImageView View(const virtual_cabinet::GrayImage& image) {
   return ImageView{image.pixels.data(), image.width, image.height, image.width};
@@ -46,12 +56,12 @@ void BM_CabinetExtractSimd(benchmark::State& state) {
   PeakExtractor extractor;
   std::vector<Peak> peaks;
   PeakParams params;
-  if (state.range(0) == 0) {
+  if (state.range(1) == 0) {
     params.along_stripe_half_width = 0;
     params.drop_isolated_peaks = false;
     params.stripe_end_min_ratio = 0;
   }
-  const auto& frames = Frames();  // rendered once, outside the timing
+  const auto& frames = Frames(state.range(0));  // rendered once, outside the timing
   size_t i = 0, total = 0;
   for (auto _ : state) {
     extractor.Extract(View(frames[i++ % frames.size()]), params, &peaks);
@@ -61,14 +71,35 @@ void BM_CabinetExtractSimd(benchmark::State& state) {
   state.SetLabel(PeakExtractor::SimdTarget());
   Report(state, total);
 }
-BENCHMARK(BM_CabinetExtractSimd)->ArgName("cross_column")->Arg(1)->Arg(0);
+BENCHMARK(BM_CabinetExtractSimd)
+    ->ArgNames({"frames", "cross_column"})
+    ->Args({0, 1})
+    ->Args({0, 0})
+    ->Args({1, 1});
 
+// The fair reference: a plain row-major thresholded centre of mass (PlainCentreOfMass).
+void BM_CabinetPlainCentreOfMass(benchmark::State& state) {
+  PlainCentreOfMass plain;
+  std::vector<Peak> peaks;
+  const auto& frames = Frames(state.range(0));
+  size_t i = 0, total = 0;
+  for (auto _ : state) {
+    plain.Extract(View(frames[i++ % frames.size()]), kPlainThresholdDn, &peaks);
+    total += peaks.size();
+    benchmark::DoNotOptimize(peaks.data());
+  }
+  Report(state, total);
+}
+BENCHMARK(BM_CabinetPlainCentreOfMass)->ArgName("frames")->Arg(0)->Arg(1);
+
+// The paper's estimator on the project's own scalar column walk (candidates and
+// refinement as ExtractScalar): not a plain implementation, see BM_CabinetPlainCentreOfMass.
 void BM_CabinetScalarCentreOfMass(benchmark::State& state) {
   PeakExtractor extractor;
   std::vector<Peak> peaks;
   PeakParams params;
   params.estimator = PeakEstimator::kThresholdedCom;
-  const auto& frames = Frames();  // rendered once, outside the timing
+  const auto& frames = Frames(0);  // rendered once, outside the timing
   size_t i = 0, total = 0;
   for (auto _ : state) {
     extractor.ExtractScalar(View(frames[i++ % frames.size()]), params, &peaks);
@@ -80,7 +111,7 @@ void BM_CabinetScalarCentreOfMass(benchmark::State& state) {
 BENCHMARK(BM_CabinetScalarCentreOfMass);
 
 void BM_CabinetReadPass(benchmark::State& state) {
-  const auto& frames = Frames();
+  const auto& frames = Frames(0);
   size_t i = 0;
   for (auto _ : state) {
     const auto& pixels = frames[i++ % frames.size()].pixels;

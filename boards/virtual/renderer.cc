@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numbers>
 #include <random>
 #include <set>
@@ -67,6 +68,33 @@ double PixelIntegral(double x, double sigma) {
   return 0.5 * (std::erf((x + 0.5) * k) - std::erf((x - 0.5) * k));
 }
 
+constexpr double kBlurStepPx = 0.01;  // defocus blur sigmas are rounded to this
+
+// Cumulative distribution of the light across a sheet seen through a scattering surface:
+// a Gaussian of sigma (mm) convolved with a one-sided exponential of length tail (mm,
+// towards +w if positive): the exponentially modified Gaussian. tail 0: the Gaussian.
+double SpreadCdf(double x, double sigma, double tail) {
+  const double gauss = 0.5 * std::erfc(-x / (std::numbers::sqrt2 * sigma));
+  if (tail == 0) return gauss;
+  if (tail < 0) return 1.0 - SpreadCdf(-x, sigma, -tail);
+  // Phi(x/s) - exp(-x/t + s^2/(2t^2)) Phi(x/s - s/t), with Phi(y) = erfc(-y/sqrt2)/2.
+  const double exponent = -x / tail + 0.5 * sigma * sigma / (tail * tail);
+  return gauss -
+         0.5 * std::exp(exponent) * std::erfc(-(x / sigma - sigma / tail) / std::numbers::sqrt2);
+}
+
+// Peak of the spread profile relative to the bare sheet's (sheet sigma, the spread's
+// widened sigma and tail as in LaserImage): the spread keeps the power, so it lowers the peak.
+double SpreadPeakRatio(double sheet_sigma, double sigma, double tail) {
+  const double step = 1e-3 * sigma;
+  double peak = 0.0;
+  for (double x = -4.0 * sigma; x <= 4.0 * sigma + 4.0 * std::abs(tail); x += step) {
+    peak = std::max(
+        peak, SpreadCdf(x + 0.5 * step, sigma, tail) - SpreadCdf(x - 0.5 * step, sigma, tail));
+  }
+  return peak / step * sheet_sigma * std::sqrt(2.0 * std::numbers::pi);
+}
+
 View ViewFromPath(const std::vector<int>& path) {
   if (path.empty()) return View::kCenter;
   if (path.size() == 1) return path[0] == 0 ? View::kLeft : View::kRight;
@@ -125,11 +153,14 @@ struct Renderer::CameraCache {
     float span;  // change of w from the pixel's top edge to its bottom edge, signed, capped
     float gain;  // DN at the sheet's centre, before speckle
     uint32_t index;
+    uint16_t blur;  // index into blurs: the camera's blur at this pixel's distance
+    bool spread;    // the subject's light spread applies (Scene::subject_light_spread)
   };
   int width = 0, height = 0;
   std::vector<View> views;
   cv::Mat base;                 // ambient image, blurred, CV_32F
   std::vector<LaserPixel> lit;  // pixels any laser can reach, sorted by w
+  std::vector<double> blurs;    // blur sigmas (px) in use; one unless defocused
   double max_span = 0.0;
 };
 
@@ -269,6 +300,7 @@ void Renderer::BuildCache(int camera) const {
   std::vector<std::vector<CameraCache::LaserPixel>> lit_rows(height);
   const Sensor& sensor = scene_.sensor;
   const Eigen::Vector3d& laser_normal = scene_.lasers.normal;
+  const LightSpread& spread = scene_.subject_light_spread;
 
   ParallelRows(height, [&](int row_begin, int row_end) {
     for (int v = row_begin; v < row_end; ++v) {
@@ -312,8 +344,12 @@ void Renderer::BuildCache(int camera) const {
         const double gain =
             sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * irradiance;
         if (gain < 1e-3) continue;
+        // The blur index holds the blur bin until the bins are numbered below.
+        const auto blur_bin = static_cast<uint16_t>(
+            std::min(65535l, std::lround(sensor.BlurAt(s.path_length) / kBlurStepPx)));
         lit_rows[v].push_back({laser_normal.dot(s.hit.point), static_cast<float>(span),
-                               static_cast<float>(gain), static_cast<uint32_t>(index)});
+                               static_cast<float>(gain), static_cast<uint32_t>(index), blur_bin,
+                               s.material == Material::kSubject && spread.Active()});
       }
     }
   });
@@ -321,10 +357,22 @@ void Renderer::BuildCache(int camera) const {
     cv::GaussianBlur(base, base, cv::Size(0, 0), sensor.blur_px, sensor.blur_px,
                      cv::BORDER_REPLICATE);
   cache->base = base;
+  std::map<uint16_t, uint16_t> blur_index;  // bin -> index into cache->blurs
   for (auto& row : lit_rows) {
-    for (const auto& p : row) cache->max_span = std::max<double>(cache->max_span, std::abs(p.span));
+    for (auto& p : row) {
+      cache->max_span = std::max<double>(cache->max_span, std::abs(p.span));
+      if (!sensor.Defocused()) {
+        p.blur = 0;
+        continue;
+      }
+      const auto [it, added] =
+          blur_index.try_emplace(p.blur, static_cast<uint16_t>(cache->blurs.size()));
+      if (added) cache->blurs.push_back(p.blur * kBlurStepPx);
+      p.blur = it->second;
+    }
     cache->lit.insert(cache->lit.end(), row.begin(), row.end());
   }
+  if (!sensor.Defocused()) cache->blurs = {sensor.blur_px};
   std::sort(cache->lit.begin(), cache->lit.end(),
             [](const auto& a, const auto& b) { return a.w < b.w; });
   caches_[camera] = std::move(cache);
@@ -338,7 +386,16 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
   cv::Mat laser(cache.height, cache.width, CV_32F, cv::Scalar(0));
   int row_min = cache.height, row_max = -1;
   const double sigma = lasers.sheet_sigma_mm;
-  const double reach = 6.0 * sigma + 0.5 * cache.max_span;
+  // Light leaving the subject: the sheet widened by the spread's Gaussian and softened by
+  // its tail (a tail far shorter than the Gaussian changes nothing measurable and would
+  // overflow SpreadCdf's exponential, so it is dropped).
+  const LightSpread& spread = scene_.subject_light_spread;
+  const double spread_sigma = std::hypot(sigma, spread.sigma_mm);
+  const double spread_tail = std::abs(spread.tail_mm) < 0.05 * spread_sigma ? 0.0 : spread.tail_mm;
+  const double profile_reach =
+      spread.Active() ? std::max(6.0 * sigma, 6.0 * spread_sigma + 10.0 * std::abs(spread_tail))
+                      : 6.0 * sigma;
+  const double reach = profile_reach + 0.5 * cache.max_span;
   // Speckle: a gamma-distributed factor (mean 1, contrast C) per column and laser,
   // so it varies along the stripe but not across it.
   const double contrast = speckle_seed ? sensor.speckle_contrast : 0.0;
@@ -355,18 +412,33 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
   // shape that no camera produces. So along v each pixel is cut into kSub slices (the
   // sheet integrated exactly over each), and each slice is spread over the rows below and
   // above by the exact pixel integral of the Gaussian blur. Along u the stripe is wide and
-  // the sampled kernel is fine.
-  const double blur = sensor.blur_px;
-  const int radius = blur > 0 ? static_cast<int>(std::ceil(4.0 * blur)) : 0;
-  const int taps = 2 * radius + 1;
-  std::vector<float> spread(static_cast<size_t>(kSub) * taps, 0.0f);
-  for (int i = 0; i < kSub; ++i) {
-    const double y = -0.5 + (i + 0.5) / kSub;  // slice centre, pixel units
-    for (int j = -radius; j <= radius; ++j) {
-      spread[static_cast<size_t>(i) * taps + j + radius] =
-          blur > 0 ? static_cast<float>(PixelIntegral(j - y, blur)) : 1.0f;
+  // the sampled kernel is fine. Each blur in use (one unless defocused) has its tables.
+  struct BlurTables {
+    double sigma;
+    int radius, taps;
+    std::vector<float> spread;  // kSub x taps: slice i's share of row offset j
+    cv::Mat along_u;            // sampled kernel, taps x 1
+  };
+  std::vector<BlurTables> blurs;
+  for (const double blur : cache.blurs) {
+    BlurTables b;
+    b.sigma = blur;
+    b.radius = blur > 0 ? static_cast<int>(std::ceil(4.0 * blur)) : 0;
+    b.taps = 2 * b.radius + 1;
+    b.spread.assign(static_cast<size_t>(kSub) * b.taps, 0.0f);
+    for (int i = 0; i < kSub; ++i) {
+      const double y = -0.5 + (i + 0.5) / kSub;  // slice centre, pixel units
+      for (int j = -b.radius; j <= b.radius; ++j) {
+        b.spread[static_cast<size_t>(i) * b.taps + j + b.radius] =
+            blur > 0 ? static_cast<float>(PixelIntegral(j - y, blur)) : 1.0f;
+      }
     }
+    if (blur > 0) b.along_u = cv::getGaussianKernel(b.taps, blur, CV_32F);
+    blurs.push_back(std::move(b));
   }
+  // One blur: the rows are blurred along u afterwards, in one filter. Several: each
+  // pixel's light is spread along u with its own kernel as it is added.
+  const bool one_blur = blurs.size() == 1;
   double slice[kSub];
   for (int k = 0; k < lasers.count; ++k) {
     const double h = lasers.HeightAt(k, t);
@@ -374,13 +446,28 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
                                [](const auto& p, double w) { return p.w < w; });
     for (; it != cache.lit.end() && it->w <= h + reach; ++it) {
       const double s = it->w - h;
-      if (std::abs(s) > 6.0 * sigma + 0.5 * std::abs(it->span)) continue;
+      if (std::abs(s) > (it->spread ? profile_reach : 6.0 * sigma) + 0.5 * std::abs(it->span)) {
+        continue;
+      }
       const int u = static_cast<int>(it->index % cache.width);
       const int v = static_cast<int>(it->index / cache.width);
       const double gain = it->gain * speckle[static_cast<size_t>(k) * cache.width + u];
       // Slice i covers w from s + span (i/kSub - 1/2) to s + span ((i+1)/kSub - 1/2);
       // slice[i] is the sheet integrated over it, in pixel units (erf at shared edges).
-      if (std::abs(it->span) < 1e-3 * sigma) {
+      if (it->spread) {
+        // The sheet's power (gain x sigma sqrt(2 pi) per mm) spread by the surface; a
+        // pixel spanning (nearly) nothing samples the profile's density.
+        const double extent = std::max<double>(std::abs(it->span), 1e-3 * sigma);
+        const double span = it->span < 0 ? -extent : extent;
+        const double scale = gain * sigma * std::sqrt(2.0 * std::numbers::pi) / extent;
+        double lower = SpreadCdf(s - 0.5 * span, spread_sigma, spread_tail);
+        for (int i = 0; i < kSub; ++i) {
+          const double upper = SpreadCdf(s + span * (static_cast<double>(i + 1) / kSub - 0.5),
+                                         spread_sigma, spread_tail);
+          slice[i] = scale * std::abs(upper - lower);
+          lower = upper;
+        }
+      } else if (std::abs(it->span) < 1e-3 * sigma) {
         const double point = gain / kSub * std::exp(-0.5 * s * s / (sigma * sigma));
         for (double& x : slice) x = point;
       } else {
@@ -394,24 +481,33 @@ cv::Mat Renderer::LaserImage(int camera, double t, std::optional<uint64_t> speck
           lower = upper;
         }
       }
-      for (int j = -radius; j <= radius; ++j) {
+      const BlurTables& b = blurs[it->blur];
+      for (int j = -b.radius; j <= b.radius; ++j) {
         const int row = v + j;
         if (row < 0 || row >= cache.height) continue;
         double sum = 0.0;
         for (int i = 0; i < kSub; ++i)
-          sum += slice[i] * spread[static_cast<size_t>(i) * taps + j + radius];
-        laser.at<float>(row, u) += static_cast<float>(sum);
+          sum += slice[i] * b.spread[static_cast<size_t>(i) * b.taps + j + b.radius];
+        float* out = laser.ptr<float>(row);
+        if (one_blur || b.sigma <= 0) {
+          out[u] += static_cast<float>(sum);
+          continue;
+        }
+        for (int du = -b.radius; du <= b.radius; ++du) {
+          const int col = u + du;
+          if (col >= 0 && col < cache.width)
+            out[col] += static_cast<float>(sum) * b.along_u.at<float>(du + b.radius);
+        }
       }
-      row_min = std::min(row_min, v - radius);
-      row_max = std::max(row_max, v + radius);
+      row_min = std::min(row_min, v - b.radius);
+      row_max = std::max(row_max, v + b.radius);
     }
   }
-  if (row_max >= 0 && blur > 0) {
+  if (row_max >= 0 && one_blur && blurs[0].sigma > 0) {
     const int r0 = std::max(0, row_min), r1 = std::min(cache.height, row_max + 1);
     cv::Mat band = laser.rowRange(r0, r1);
-    const cv::Mat along_u = cv::getGaussianKernel(taps, blur, CV_32F);
     const cv::Mat none = (cv::Mat_<float>(1, 1) << 1.0f);
-    cv::sepFilter2D(band.clone(), band, CV_32F, along_u.t(), none, cv::Point(-1, -1), 0.0,
+    cv::sepFilter2D(band.clone(), band, CV_32F, blurs[0].along_u.t(), none, cv::Point(-1, -1), 0.0,
                     cv::BORDER_CONSTANT);
   }
   return laser;
@@ -465,6 +561,14 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
   std::set<std::tuple<int, int, int, long long>> seen;
   const View views[] = {View::kCenter, View::kLeft, View::kRight, View::kLeftRight,
                         View::kRightLeft};
+  const LightSpread& spread = scene_.subject_light_spread;
+  const double sheet = scene_.lasers.sheet_sigma_mm,
+               spread_sigma = std::hypot(sheet, spread.sigma_mm);
+  const double spread_peak =
+      spread.Active()
+          ? SpreadPeakRatio(sheet, spread_sigma,
+                            std::abs(spread.tail_mm) < 0.05 * spread_sigma ? 0.0 : spread.tail_mm)
+          : 1.0;
 
   for (int k = 0; k < scene_.lasers.count; ++k) {
     const Plane plane = scene_.lasers.PlaneAt(k, t);
@@ -542,7 +646,8 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
             peak.v = pixel->y();
             peak.point_in_world = point;
             peak.peak_dn = scene_.sensor.laser_dn * scene_.lasers.power * Albedo(s.hit, 1.0) *
-                           s.transmission * irradiance;
+                           s.transmission * irradiance *
+                           (material == Material::kSubject ? spread_peak : 1.0);
             peaks.push_back(peak);
           }
         }

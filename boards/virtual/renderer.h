@@ -63,7 +63,8 @@ struct TruthPeak {
   int u = 0;                                    // image column
   double v = 0.0;                               // exact sub-pixel row of the stripe centre
   Eigen::Vector3d point_in_world;               // on the laser plane and on the surface
-  double peak_dn = 0.0;                         // expected stripe peak before blur and noise
+  // Expected stripe peak before blur and noise (after the subject's light spread).
+  double peak_dn = 0.0;
 };
 
 // Renders the virtual cabinet. The scene is static, so everything that does not depend

@@ -362,6 +362,126 @@ TEST(RendererTest, NoiseFreeStripeCentroidMatchesTruthRow) {
   EXPECT_LT(std::abs(sum / n), 0.01);
 }
 
+// Mean and variance (rows) of the laser light (lasers on minus off, noise-free) in column
+// u within ±12 rows of row v.
+std::pair<double, double> LightMoments(const FloatImage& lit, const FloatImage& dark, int u,
+                                       double v) {
+  double sum = 0, moment = 0, moment2 = 0;
+  const int centre = static_cast<int>(std::lround(v));
+  for (int r = centre - 12; r <= centre + 12; ++r) {
+    const double light = lit.at(u, r) - dark.at(u, r);
+    sum += light;
+    moment += light * r;
+    moment2 += light * r * r;
+  }
+  const double mean = moment / sum;
+  return {mean, moment2 / sum - mean * mean};
+}
+
+// Truth peaks on the cuboid's flat faces, centre view, away from other stripes and image
+// edges, on stripes with |slope| < 0.1 (so the blur along u does not widen the column).
+std::vector<TruthPeak> FlatFacePeaks(const Renderer& renderer, int camera, double t) {
+  const auto truth = renderer.Truth(camera, t);
+  std::map<int, std::vector<const TruthPeak*>> by_column;
+  for (const auto& p : truth) by_column[p.u].push_back(&p);
+  std::vector<TruthPeak> out;
+  for (const auto& p : truth) {
+    if (p.material != Material::kSubject || p.view != View::kCenter || p.peak_dn < 60 ||
+        std::abs(BoxDistance(renderer.scene(), p.point_in_world)) > 1e-3 || p.v < 20 || p.v > 748) {
+      continue;
+    }
+    bool alone = true, left = false, right = false;
+    for (const TruthPeak* q : by_column[p.u])
+      alone = alone && (q == &p || std::abs(q->v - p.v) > 25);
+    for (int side : {-1, 1}) {
+      for (const TruthPeak* q : by_column[p.u + side]) {
+        if (q->laser == p.laser && q->view == p.view && std::abs(q->v - p.v) < 0.1) {
+          (side < 0 ? left : right) = true;
+        }
+      }
+    }
+    if (alone && left && right) out.push_back(p);
+  }
+  return out;
+}
+
+// Defocus: the blur grows with the dioptres off the focal plane, Gaussians add in
+// quadrature, so a stripe's column variance grows by exactly (k |1/d - 1/d_f|)² px², d the
+// camera-to-surface distance from the scene's geometry.
+TEST(RendererTest, DefocusWidensStripesAsTheThinLensPredicts) {
+  Scene sharp = Scene::Load(ScenePath("cuboid"));
+  sharp.sensor.noise = false;
+  Scene blurred = sharp;
+  blurred.sensor.focus_mm = 1500;
+  blurred.sensor.defocus_px_per_diopter = 9;
+  const Renderer a(sharp), b(blurred);
+  const Eigen::Vector3d centre = sharp.cameras[0].camera.CenterInWorld();
+  int n = 0;
+  double worst = 0;
+  for (double t : {5.5, 6.3, 7.0}) {
+    const FloatImage a_lit = a.RenderRadiance(0, t), a_dark = a.RenderRadiance(0, t, false);
+    const FloatImage b_lit = b.RenderRadiance(0, t), b_dark = b.RenderRadiance(0, t, false);
+    for (const TruthPeak& p : FlatFacePeaks(a, 0, t)) {
+      const double d = (p.point_in_world - centre).norm();
+      const double defocus = 9 * std::abs(1000 / d - 1000 / 1500.0);
+      const double grown = LightMoments(b_lit, b_dark, p.u, p.v).second -
+                           LightMoments(a_lit, a_dark, p.u, p.v).second;
+      worst = std::max(worst, std::abs(grown / (defocus * defocus) - 1));
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 300);
+  std::printf("defocus: column variance grew as predicted to within %.1f %% (%d columns)\n",
+              100 * worst, n);
+  EXPECT_LT(worst, 0.03);
+}
+
+// Skin's light spread on the subject: the sheet (sigma 1 mm) convolved with a Gaussian of
+// sigma_mm and a one-sided exponential of tail_mm. Moments add: the column variance grows
+// by (sigma_mm² + tail_mm²) g² and the centre moves by tail_mm g towards +w (up: smaller
+// rows), g the px per mm along the laser normal, known from the sharp stripe's variance
+// (sheet² g² + blur² + 1/12 for the pixel). Panels spread nothing.
+TEST(RendererTest, SkinLightSpreadBroadensAndShiftsAsItsMomentsPredict) {
+  Scene plain = Scene::Load(ScenePath("cuboid"));
+  plain.sensor.noise = false;
+  Scene skin = plain;
+  skin.subject_light_spread = {2.0, 1.0};
+  const Renderer a(plain), b(skin);
+  const double blur = plain.sensor.blur_px, sheet = plain.lasers.sheet_sigma_mm;
+  int n = 0;
+  double worst_width = 0, worst_shift = 0;
+  for (double t : {5.5, 6.3, 7.0}) {
+    const FloatImage a_lit = a.RenderRadiance(0, t), a_dark = a.RenderRadiance(0, t, false);
+    const FloatImage b_lit = b.RenderRadiance(0, t), b_dark = b.RenderRadiance(0, t, false);
+    for (const TruthPeak& p : FlatFacePeaks(a, 0, t)) {
+      const auto [a_mean, a_var] = LightMoments(a_lit, a_dark, p.u, p.v);
+      const auto [b_mean, b_var] = LightMoments(b_lit, b_dark, p.u, p.v);
+      const double g2 = (a_var - blur * blur - 1.0 / 12) / (sheet * sheet);
+      worst_width = std::max(worst_width, std::abs((b_var - a_var) / (5.0 * g2) - 1));
+      worst_shift = std::max(worst_shift, std::abs((a_mean - b_mean) / std::sqrt(g2) - 1));
+      ++n;
+    }
+    // Panel pixels are rendered exactly as without the spread.
+    const auto truth = a.Truth(0, t);
+    for (const TruthPeak& p : truth) {
+      if (p.material != Material::kPanel || p.v < 15 || p.v > 752) continue;
+      bool near_subject = false;
+      for (const TruthPeak& q : truth) {
+        near_subject = near_subject || (q.material == Material::kSubject &&
+                                        std::abs(q.u - p.u) <= 3 && std::abs(q.v - p.v) < 40);
+      }
+      if (near_subject) continue;
+      for (int r = static_cast<int>(p.v) - 12; r <= static_cast<int>(p.v) + 12; ++r)
+        ASSERT_EQ(a_lit.at(p.u, r), b_lit.at(p.u, r)) << p.u << " " << r;
+    }
+  }
+  ASSERT_GT(n, 300);
+  std::printf("skin: variance within %.1f %%, shift within %.1f %% (%d columns)\n",
+              100 * worst_width, 100 * worst_shift, n);
+  EXPECT_LT(worst_width, 0.02);
+  EXPECT_LT(worst_shift, 0.02);
+}
+
 // The lens blurs the continuous image before pixels integrate it, so a stripe's column
 // profile is the same shape at every sub-pixel phase. In the mirror views a pixel spans
 // ~3 mm of a 1 mm sheet; blurring pixel means with a sampled kernel made the shape depend

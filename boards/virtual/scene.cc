@@ -129,6 +129,13 @@ TriangleMesh Mirror::Mesh() const { return Quad(origin, along, up, width, height
 
 TriangleMesh Panel::Mesh() const { return Quad(origin, along, up, width, height, plane.normal); }
 
+double Sensor::BlurAt(double distance_mm) const {
+  if (!Defocused() || !(distance_mm > 0)) return blur_px;
+  const double defocus =
+      defocus_px_per_diopter * std::abs(1000.0 / distance_mm - 1000.0 / focus_mm);
+  return std::hypot(blur_px, defocus);
+}
+
 Scene Scene::Load(const std::filesystem::path& file) {
   const nlohmann::json json = JsonReader::ParseFile(file);
   return Parse(json, file.string(), file.parent_path());
@@ -233,7 +240,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
 
   const JsonReader sr(json.contains("sensor") ? json["sensor"] : empty, file_name, "sensor");
   sr.AllowOnly({"ambient_dn", "laser_dn", "read_noise_dn", "electrons_per_dn", "speckle_contrast",
-                "blur_px", "noise"});
+                "blur_px", "focus_mm", "defocus_px_per_diopter", "noise"});
   Sensor& sensor = scene.sensor;
   sensor.ambient_dn = sr.Number("ambient_dn", 40.0, 0.0, 255.0);
   sensor.laser_dn = sr.Number("laser_dn", 400.0, 0.0, 1e5);
@@ -241,6 +248,11 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   sensor.electrons_per_dn = sr.Number("electrons_per_dn", 40.0, 0.01, 1e6);
   sensor.speckle_contrast = sr.Number("speckle_contrast", 0.2, 0.0, 1.0);
   sensor.blur_px = sr.Number("blur_px", 0.7, 0.0, 10.0);
+  sensor.focus_mm = sr.Number("focus_mm", 0.0, 0.0, 1e5);
+  sensor.defocus_px_per_diopter = sr.Number("defocus_px_per_diopter", 0.0, 0.0, 100.0);
+  if (sensor.defocus_px_per_diopter > 0 && !(sensor.focus_mm > 0)) {
+    sr.Fail("focus_mm", "must be > 0 when defocus_px_per_diopter is set");
+  }
   sensor.noise = sr.Bool("noise", true);
 
   // "albedo" is the renderer's business; the rest describes the subject's shape.
@@ -250,6 +262,14 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
     scene.subject_albedo =
         JsonReader(subject_json, file_name, "subject").Number("albedo", 0.6, 0.0, 1.0);
     subject_json.erase("albedo");
+  }
+  // So is "light_spread" (subsurface scattering, e.g. skin).
+  if (subject_json.is_object() && subject_json.contains("light_spread")) {
+    const JsonReader spread = JsonReader(subject_json, file_name, "subject").Object("light_spread");
+    spread.AllowOnly({"sigma_mm", "tail_mm"});
+    scene.subject_light_spread.sigma_mm = spread.Number("sigma_mm", 0.0, 0.0, 20.0);
+    scene.subject_light_spread.tail_mm = spread.Number("tail_mm", 0.0, -20.0, 20.0);
+    subject_json.erase("light_spread");
   }
   scene.subject = ParseSubject(JsonReader(subject_json, file_name, "subject"), base_dir);
 

@@ -93,8 +93,31 @@ struct Sensor {
   double read_noise_dn = 2.0;
   double electrons_per_dn = 40.0;  // shot noise: variance = signal / electrons_per_dn
   double speckle_contrast = 0.2;   // multiplicative, varies along the stripe
-  double blur_px = 0.7;            // Gaussian camera blur
+  double blur_px = 0.7;            // Gaussian camera blur (in focus)
+  // Defocus: a surface at (unfolded) distance d mm is blurred by a further Gaussian of
+  // sigma defocus_px_per_diopter * |1000/d - 1000/focus_mm| px, added in quadrature to
+  // blur_px (a thin lens: the blur circle grows with the dioptres off the focal plane).
+  // 0 = every distance in focus.
+  double focus_mm = 0.0;
+  double defocus_px_per_diopter = 0.0;
   bool noise = true;
+
+  bool Defocused() const { return focus_mm > 0 && defocus_px_per_diopter > 0; }
+  // The camera's blur sigma (px) at that distance.
+  double BlurAt(double distance_mm) const;
+};
+
+// How laser light spreads in a surface before it leaves it. Skin scatters a red laser
+// under its surface: the stripe comes out broadened (a Gaussian of sigma_mm added to the
+// sheet's, in quadrature) and softened on one side (an exponential tail of tail_mm, along
+// +laser normal if positive, -normal if negative). The sheet's power is kept. The truth is
+// still the laser plane's trace on the surface; an asymmetric profile's light centre is
+// off it (its mean by tail_mm along the normal), which is a bias of the surface, not of the
+// estimator. Panels, floor and target spread nothing.
+struct LightSpread {
+  double sigma_mm = 0.0;
+  double tail_mm = 0.0;
+  bool Active() const { return sigma_mm > 0 || tail_mm != 0; }
 };
 
 struct Scene {
@@ -103,6 +126,7 @@ struct Scene {
   std::array<Panel, 2> panels;
   double floor_albedo = 0.25;
   double subject_albedo = 0.6;
+  LightSpread subject_light_spread;  // none: a matt, opaque surface
   Lasers lasers;
   Sensor sensor;
   Subject subject;

@@ -26,6 +26,7 @@ constexpr NamedEstimator kEstimatorNames[] = {
     {PeakEstimator::kGaussian3, "gaussian3"},
     {PeakEstimator::kBlaisRioux4, "blais_rioux4"},
     {PeakEstimator::kParabola3, "parabola3"},
+    {PeakEstimator::kAdaptive, "adaptive"},
 };
 
 // Column profile around one candidate, in sample coordinates (index i = row lo + i),
@@ -109,6 +110,7 @@ float Estimate(PeakEstimator e, const Profile& p) {
     case PeakEstimator::kWindowedCom:
       return WindowedCom(p);
     case PeakEstimator::kGaussian3:
+    case PeakEstimator::kAdaptive:  // sharp stripes; wide ones take WideCentre
       return Gaussian3(p);
     case PeakEstimator::kBlaisRioux4:
       return BlaisRioux4(p);
@@ -161,7 +163,7 @@ const char* ToString(PeakEstimator e) {
 const std::vector<PeakEstimator>& AllPeakEstimators() {
   static const std::vector<PeakEstimator> all = {
       PeakEstimator::kThresholdedCom, PeakEstimator::kWindowedCom, PeakEstimator::kGaussian3,
-      PeakEstimator::kBlaisRioux4, PeakEstimator::kParabola3};
+      PeakEstimator::kBlaisRioux4,    PeakEstimator::kParabola3,   PeakEstimator::kAdaptive};
   return all;
 }
 
@@ -292,6 +294,67 @@ bool HalfMaxCrossings(const S& s, int first, int last, int n, float half, float*
   return true;
 }
 
+// The row of a wide stripe (FWHM `width` >= kWideStripeFwhmPx, top rows [r0, r1]) in column
+// u. A 3-point fit reads 3 samples of a profile 6 px wide, so its noise grows with the
+// square of the width; this reads the whole profile. The window's flanks (W rows out) still
+// hold the tails of a wide stripe, so the background is measured again beyond its reach:
+// 3-row means from 3 sigma + 1 out, linear through both; NaN (take the 3-point fit) if
+// they disagree by more than threshold/2 (a neighbouring line, an ambient step). Then the
+// background-subtracted centre of mass over +-kWideWindowSigmas sigma, the window recentred on the
+// estimate twice (a window centred on the integer top would pull the estimate towards it), its end
+// pixels weighted by the part of them inside.
+float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float width, float thr,
+                 float start) {
+  const float sigma = width * (1.0f / 2.3548f);
+  const int reach = static_cast<int>(std::ceil(3.0f * sigma)) + 1;
+  auto mean3 = [&](int first) {
+    return (static_cast<float>(search.At(u, first) + search.At(u, first + 1) +
+                               search.At(u, first + 2))) *
+           (1.0f / 3.0f);
+  };
+  const float left = mean3(r0 - reach - 2), right = mean3(r1 + reach);
+  const float x_left = static_cast<float>(r0 - reach - 1);
+  const float x_right = static_cast<float>(r1 + reach + 1);
+  // Flanks that disagree mean a neighbouring line or an ambient step within the wide
+  // support: the 3-point fit, which reads only the top, is the safer estimate there.
+  if (std::abs(left - right) > 0.5f * thr) return kNaN;
+  const float slope = (right - left) / (x_right - x_left);
+  const float base = left - slope * x_left;
+  const float half = kWideWindowSigmas * sigma;
+  // From the middle of the half-maximum crossings (within a few hundredths of a pixel of
+  // the centre), each pass leaves ~0.23 of the window's offset from the stripe's centre (at
+  // +-2 sigma): recentre until it moves by less than 1e-3 px.
+  float centre = start;
+  for (int pass = 0; pass < 8; ++pass) {
+    const float a = centre - half, b = centre + half;
+    float sum = 0, moment = 0;
+    for (int r = static_cast<int>(std::floor(a + 0.5f)); r <= static_cast<int>(std::ceil(b - 0.5f));
+         ++r) {
+      const float rf = static_cast<float>(r);
+      // The part [x0, x1] of pixel r inside the window, relative to its centre.
+      const float x0 = std::max(-0.5f, a - rf), x1 = std::min(0.5f, b - rf);
+      if (!(x1 > x0)) continue;
+      auto sample = [&](int row) {
+        return static_cast<float>(search.At(u, row)) - (base + slope * static_cast<float>(row));
+      };
+      const float s = sample(r);
+      if (!(s > 0)) continue;
+      // Within the pixel the light is taken as linear, s + g x with the slope g of the
+      // neighbours, so a partly covered end pixel counts the light of its covered part.
+      const float g = 0.5f * (sample(r + 1) - sample(r - 1));
+      const float p1 = 0.5f * (x1 * x1 - x0 * x0), p2 = (x1 * x1 * x1 - x0 * x0 * x0) / 3.0f;
+      const float mass = s * (x1 - x0) + g * p1;
+      sum += mass;
+      moment += rf * mass + s * p1 + g * p2;
+    }
+    if (!(sum > 0)) return kNaN;
+    const float moved = moment / sum - centre;
+    centre += moved;
+    if (std::abs(moved) < 1e-3f) break;
+  }
+  return centre;
+}
+
 // Refines one candidate (u, r0) into a peak; false if it is no laser peak. A pure function
 // of the image and the candidate, so the order candidates arrive in does not matter.
 bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, int r0, Peak* peak) {
@@ -353,7 +416,12 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   float xl, xr;
   if (!HalfMaxCrossings(s, first, last, n, half, &xl, &xr)) return false;
   const float width = xr - xl;
-  if (width < params.min_width_px || width > params.max_width_px) return false;
+  // A clipped top's half-maximum width is that of its clipped amplitude, wider than the
+  // stripe's FWHM: only the window bounds it.
+  if (width < params.min_width_px ||
+      width > (saturated ? 2.0f * static_cast<float>(w) : params.max_width_px)) {
+    return false;
+  }
   // A line stands out on both sides. The background is the lower flank (so a neighbouring
   // line does not hide this one), which also lets a noise spike on the bright side of an
   // ambient step pass as a peak of the step's height: on rendered frames at read noise
@@ -401,7 +469,13 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
     profile.win_lo = wl;
     profile.win_hi = wr;
   }
-  const float t = Estimate(params.estimator, profile);
+  float t = kNaN;
+  if (params.estimator == PeakEstimator::kAdaptive && !profile.flat_top &&
+      width >= kWideStripeFwhmPx) {
+    t = WideCentre(search, u, r0, r1, width, thr, static_cast<float>(lo) + 0.5f * (xl + xr)) -
+        static_cast<float>(lo);
+  }
+  if (!std::isfinite(t)) t = Estimate(params.estimator, profile);
   if (!std::isfinite(t) || t < static_cast<float>(first) - 1.5f ||
       t > static_cast<float>(last) + 1.5f) {
     return false;

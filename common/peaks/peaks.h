@@ -52,7 +52,14 @@ enum class PeakEstimator {
   kGaussian3,       // 3-point Gaussian (parabola through the logarithms).
   kBlaisRioux4,     // Blais-Rioux 4th-order derivative filter, linear zero crossing.
   kParabola3,       // 3-point parabola.
+  // gaussian3 on sharp stripes; on wide ones (FWHM >= kWideStripeFwhmPx) a centre of mass
+  // over +-kWideWindowSigmas sigma of the measured width, recentred on its own estimate, on
+  // a background measured beyond the stripe (see peaks.cc, WideCentre).
+  kAdaptive,
 };
+// Where `adaptive` leaves gaussian3 (chosen by measurement, docs/peak-extraction.md).
+constexpr float kWideStripeFwhmPx = 3.0f;
+constexpr float kWideWindowSigmas = 2.0f;
 const char* ToString(PeakEstimator e);
 const std::vector<PeakEstimator>& AllPeakEstimators();
 
@@ -77,7 +84,7 @@ struct PixelRect {
 };
 
 struct PeakParams {
-  PeakEstimator estimator = PeakEstimator::kGaussian3;
+  PeakEstimator estimator = PeakEstimator::kAdaptive;
   int threshold_dn = 18;      // Peak minus local background, DN.
   int window = 8;             // Half-width in rows of the background/estimator window.
   float min_width_px = 1.2f;  // FWHM limits; narrower = glint, wider = not a laser line.
@@ -97,7 +104,7 @@ struct PeakParams {
   // Throws std::invalid_argument "peaks.<key>: problem" on bad values.
   void Validate() const;
   // Reads board.json's "peaks" object (all keys optional, unknown keys rejected):
-  // {"estimator": "gaussian3", "threshold_dn": 18, "window": 8, "min_width_px": 1.2,
+  // {"estimator": "adaptive", "threshold_dn": 18, "window": 8, "min_width_px": 1.2,
   //  "max_width_px": 8, "max_peaks_per_column": 9, "min_separation_px": 3,
   //  "saturation_level": 255, "roi": {"x":0,"y":0,"width":0,"height":0},
   //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...],
@@ -134,6 +141,21 @@ class PeakExtractor {
   std::vector<int32_t> links_;  // Each peak's neighbours along its stripe.
   std::vector<uint8_t> dropped_;
   std::vector<uint8_t> extent_;  // How far each peak's stripe goes on, per side.
+};
+
+// The fair reference for speed and accuracy: a plain thresholded centre of mass, as one
+// would write it without tuning — one pass over the rows, a running sum per column, no
+// SIMD. A run of samples above `threshold_dn` in a column is one stripe; its row is the
+// mean row weighted by (I - threshold_dn), width the run's length, intensity its top above
+// the threshold. No background model, no width or shape checks. Peaks come in the order
+// their runs end (by row, then column). Reuses its buffers across frames.
+class PlainCentreOfMass {
+ public:
+  void Extract(const ImageView& image, int threshold_dn, std::vector<Peak>* out);
+
+ private:
+  std::vector<uint32_t> sum_, moment_;
+  std::vector<uint16_t> first_, top_;
 };
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params);
