@@ -30,7 +30,7 @@ function(mirrorscan_add_executable)
 endfunction()
 
 function(mirrorscan_add_test)
-  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SRCS;DEPS;LABELS" ${ARGN})
+  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SRCS;DEPS;LABELS;FIXTURES" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SRCS})
   _mirrorscan_common(${ARG_NAME})
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
@@ -39,9 +39,16 @@ function(mirrorscan_add_test)
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 600)
   endif()
+  # FIXTURES: ctest fixtures the tests need set up first (e.g. cabinet_lens, tests/).
+  set(_properties TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}")
+  if(ARG_FIXTURES)
+    list(APPEND _properties FIXTURES_REQUIRED "${ARG_FIXTURES}")
+    target_compile_definitions(${ARG_NAME} PRIVATE
+        MIRRORSCAN_TEST_DATA_DIR="${CMAKE_BINARY_DIR}/test-data")
+  endif()
   # PRE_TEST: discovery runs at ctest time, so the cross build discovers under qemu.
   gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120
-      PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}")
+      PROPERTIES ${_properties})
 endfunction()
 
 function(mirrorscan_add_benchmark)

@@ -4,7 +4,6 @@
 // own residuals are not the measure; the scene's true projection and laser planes are.
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -24,7 +23,6 @@ using test_support::ViewAgreement;
 using virtual_cabinet::Scene;
 
 const std::string kSource = MIRRORSCAN_SOURCE_DIR;
-constexpr double kDeg = std::numbers::pi / 180.0;
 // Every third frame of each 300-frame sweep: ~220k points per scene, all columns.
 constexpr int kFrameStep = 3;
 
@@ -90,10 +88,8 @@ std::vector<ViewAgreement> Compare(const Calibration& estimate, const Sweep& swe
   return rows;
 }
 
-// Per camera and view. The target is 0.05 px RMS / 0.15 px max and 0.1 mm RMS /
-// 0.3 mm max; the pixel bounds hold, the millimetre ones not yet everywhere (measured with
-// two cameras: up to 0.110 mm RMS on the cuboid's centre views, max 0.24 mm; one camera:
-// 0.156 mm RMS, max 0.32 mm), so these guard the figures measured, just above them.
+// Per camera and view: 0.05 px RMS / 0.15 px max, and the millimetre bounds given (the
+// factory flow's two cameras: 0.1 mm RMS / 0.3 mm max; measured up to 0.074 / 0.254 mm).
 void ExpectWithinBounds(const std::vector<ViewAgreement>& rows, const std::string& where,
                         double max_rms_mm, double max_mm) {
   for (const ViewAgreement& r : rows) {
@@ -103,45 +99,6 @@ void ExpectWithinBounds(const std::vector<ViewAgreement>& rows, const std::strin
     EXPECT_LE(r.max_px, 0.15) << what;
     EXPECT_LE(r.rms_mm, max_rms_mm) << what;
     EXPECT_LE(r.max_mm, max_mm) << what;
-  }
-}
-
-// Camera rotation, centre and intrinsics and both mirror planes against the truth.
-void ExpectParametersMatchTruth(const Calibration& ours, const Calibration& truth) {
-  for (const CalibrationCamera& c : ours.cameras) {
-    const Camera& t = truth.FindCamera(c.name)->camera;
-    const CameraIntrinsics& k = c.camera.intrinsics;
-    const double rotation =
-        c.camera.cam_from_world.rotation.angularDistance(t.cam_from_world.rotation) / kDeg;
-    const double centre = (c.camera.CenterInWorld() - t.CenterInWorld()).norm();
-    std::printf(
-        "camera %s: rotation off by %.4f°, centre by %.3f mm, fx %.3f fy %.3f (true %.3f), "
-        "cx %.3f cy %.3f (true %.3f %.3f), k1 %.5f k2 %.5f k3 %.5f (true %.5f %.5f %.5f)\n",
-        c.name.c_str(), rotation, centre, k.fx, k.fy, t.intrinsics.fx, k.cx, k.cy, t.intrinsics.cx,
-        t.intrinsics.cy, k.k1, k.k2, k.k3, t.intrinsics.k1, t.intrinsics.k2, t.intrinsics.k3);
-    EXPECT_LT(rotation, 0.04) << c.name;  // measured 0.024-0.026°
-    EXPECT_LT(centre, 1.0) << c.name;
-    EXPECT_LT(std::abs(k.fx / t.intrinsics.fx - 1.0), 5e-4) << c.name;
-    EXPECT_LT(std::abs(k.fy / t.intrinsics.fy - 1.0), 5e-4) << c.name;
-    EXPECT_LT(std::abs(k.cx - t.intrinsics.cx), 1.0) << c.name;
-    EXPECT_LT(std::abs(k.cy - t.intrinsics.cy), 1.0) << c.name;
-    // Distortion where it acts: at 0.9 of the half-diagonal (normalised radius ~0.41).
-    const double r = 0.9 * 640.0 / t.intrinsics.fx;
-    const Eigen::Vector2d edge(r / std::sqrt(2.0), r / std::sqrt(2.0));
-    const double shift_px =
-        ((c.camera.intrinsics.Distort(edge) - t.intrinsics.Distort(edge)) * t.intrinsics.fx).norm();
-    std::printf("camera %s: distortion at the image's corner differs by %.4f px\n", c.name.c_str(),
-                shift_px);
-    EXPECT_LT(shift_px, 0.2) << c.name;  // measured 0.14 px
-  }
-  for (const CalibrationMirror& m : ours.mirrors) {
-    const Plane& t = truth.FindMirror(m.name)->plane;
-    const double angle = std::acos(std::clamp(m.plane.normal.dot(t.normal), -1.0, 1.0)) / kDeg;
-    const double offset = std::abs(m.plane.offset - t.offset);
-    std::printf("mirror %s: normal off by %.5f°, offset by %.4f mm\n", m.name.c_str(), angle,
-                offset);
-    EXPECT_LT(angle, 0.01) << m.name;
-    EXPECT_LT(offset, 0.15) << m.name;  // measured 0.06 (two cameras), 0.11 mm (one)
   }
 }
 
@@ -155,9 +112,9 @@ TEST(CalibrationTruth, TwoCamerasWithTheirLensesHoldOverWholeSweeps) {
   for (const auto& f : result.failures) std::printf("failure: %s\n", f.c_str());
   ASSERT_TRUE(result.ok);
   for (const auto& c : result.cameras) EXPECT_GE(c.coverage.fraction, 0.85) << c.name;
-  ExpectParametersMatchTruth(*result.calibration, Truth());
+  test_support::ExpectParametersMatchTruth(*result.calibration, Truth());
   for (const Sweep& sweep : Sweeps())
-    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.12, 0.3);
+    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.1, 0.3);
 }
 
 TEST(CalibrationTruth, OneCameraWithItsLensHoldsOverWholeSweeps) {
@@ -166,9 +123,11 @@ TEST(CalibrationTruth, OneCameraWithItsLensHoldsOverWholeSweeps) {
   for (const auto& f : result.failures) std::printf("failure: %s\n", f.c_str());
   ASSERT_TRUE(result.ok);
   ASSERT_EQ(result.calibration->cameras.size(), 1u);
-  ExpectParametersMatchTruth(*result.calibration, Truth());
+  test_support::ExpectParametersMatchTruth(*result.calibration, Truth());
   for (const Sweep& sweep : Sweeps())
-    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.17, 0.35);
+    // One camera alone holds its pose with half the target's views: measured up to
+    // 0.116 mm RMS, 0.284 mm max (the cuboid's centre view).
+    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.13, 0.3);
 }
 
 // The target alone fits its markers to 0.03 px but not the lens beyond them: the coverage
@@ -215,6 +174,25 @@ TEST(CalibrationTruth, BumpedRightMirrorIsWorseOnItsSide) {
   EXPECT_TRUE(right_flagged);
   EXPECT_FALSE(left_flagged);
   EXPECT_FALSE(result.ok);
+  // Had it been kept: over a sweep of the bumped cabinet no plane stands in for the bumped
+  // mirror, and fitting one pulls the poses and the other mirror along, so every view is
+  // off, the right ones most (docs/calibration.md's table: 0.87 px RMS there, 2.4 mm).
+  const Scene bumped = LoadScene("mannequin.json", bump);
+  const auto rows = test_support::CompareWithTruth(*result.calibration, bumped,
+                                                   test_support::SweepTruth(bumped, kFrameStep));
+  std::printf("bumped mannequin:\n%s", test_support::FormatAgreement(rows).c_str());
+  for (const std::string camera : {"upper", "lower"}) {
+    const auto row = [&](const std::string& view) {
+      const auto found = std::find_if(rows.begin(), rows.end(), [&](const ViewAgreement& r) {
+        return r.camera == camera && r.view == view;
+      });
+      return found == rows.end() ? ViewAgreement{} : *found;
+    };
+    ASSERT_GT(row("right").points, 1000u) << camera;
+    EXPECT_GT(row("right").rms_px, 2.0 * row("left").rms_px) << camera;
+    EXPECT_GT(row("right").rms_px, 0.3) << camera;  // ten times what a flat cabinet reaches
+    EXPECT_GT(row("right").max_mm, 1.0) << camera;
+  }
 }
 
 }  // namespace

@@ -1,11 +1,15 @@
 // scripts/factory-calibrate against the real mirrorscand on the virtual board, its cameras
-// rendering the three-panel target and a laser sweep: a good cabinet passes and the device
-// ends up holding exactly the calibration computed on the host, with the panels' offsets
-// measured; a target or a panel out of place fails with a reason and leaves the device's
-// calibration untouched.
+// rendering the three-panel target and a laser sweep, each camera's lens from chessboard
+// captures (the ctest fixture cabinet_lens): a good cabinet passes, the device ends up
+// holding exactly the calibration computed on the host, and that calibration is the
+// scene's true one over whole sweeps; a missing lens, a target or a panel out of place
+// fails with a reason and leaves the device's calibration untouched.
 #include <signal.h>
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -16,6 +20,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "boards/virtual/scene.h"
+#include "common/config/calibration.h"
+#include "tests/support/calibration_truth.h"
 #include "tests/support/process.h"
 
 namespace mirrorscan {
@@ -26,10 +33,21 @@ using nlohmann::json;
 
 const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
 const fs::path kBinDir = MIRRORSCAN_BIN_DIR;
+const fs::path kLens = fs::path(MIRRORSCAN_TEST_DATA_DIR) / "lens";
+// The lens step done before (calibrate-intrinsics' files), as a factory reuses it.
+const std::string kLenses = " --intrinsics upper=" + (kLens / "upper.json").string() +
+                            " --intrinsics lower=" + (kLens / "lower.json").string();
 
 using Result = test_support::CommandResult;
 using test_support::ChildProcess;
 using test_support::ReadFile;
+
+// The number printed right after `prefix` in `text`; NaN when there is none.
+double NumberAfter(const std::string& text, const std::string& prefix) {
+  const size_t at = text.find(prefix);
+  if (at == std::string::npos) return std::nan("");
+  return std::strtod(text.c_str() + at + prefix.size(), nullptr);
+}
 
 class FactoryCalibrateTest : public ::testing::Test {
  protected:
@@ -85,10 +103,10 @@ class FactoryCalibrateTest : public ::testing::Test {
         dir_ / "stderr.txt");
   }
 
-  Result FactoryCalibrate(const fs::path& out) {
+  Result FactoryCalibrate(const fs::path& out, const std::string& lenses = kLenses) {
     // On the virtual board laser 0 rides 50 mm below the slide's readback.
     return Shell((kSource / "scripts/factory-calibrate").string() + " --host " + host_ + " --out " +
-                 out.string() + " --readback-offset 50");
+                 out.string() + " --readback-offset 50" + lenses);
   }
 
   fs::path dir_;
@@ -99,9 +117,15 @@ class FactoryCalibrateTest : public ::testing::Test {
 
 TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   StartDaemon(kSource / "boards/virtual/scenes/calibration.json");
-  const Result run = FactoryCalibrate(dir_ / "out");
+  // The whole flow: the lens of each camera from its chessboard captures, then the target.
+  const std::string captures = (kLens / "captures").string();
+  const Result run = FactoryCalibrate(
+      dir_ / "out", " --chessboard upper=" + captures + " --chessboard lower=" + captures);
   ASSERT_EQ(run.exit_code, 0) << run.out << daemon_->Log();
-  EXPECT_NE(run.out.find("PASS"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("calibrating the lens of camera upper from 30 chessboard images"),
+            std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("PASS: upper lens on 9"), std::string::npos) << run.out;
 
   // What the device stores and serves is what the host computed, and it is a real
   // calibration of this cabinet: both cameras, both mirrors, small residuals.
@@ -116,9 +140,27 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   const json report = json::parse(ReadFile(dir_ / "out/report.json"));
   EXPECT_TRUE(report["ok"].get<bool>());
   for (const json& camera : report["cameras"]) {
-    for (const json& view : camera["views"]) {
-      EXPECT_LT(view["rms_after_px"].get<double>(), 0.15) << camera["name"] << view["view"];
-    }
+    EXPECT_TRUE(camera["lens"]["fixed"].get<bool>()) << camera["name"];
+    EXPECT_GE(camera["lens"]["coverage"].get<double>(), 0.85) << camera["name"];
+  }
+  // Against the scene's true calibration: the parameters, and where the scanner uses
+  // them, every stripe point of a cuboid sweep (every sixth frame).
+  const Calibration ours = Calibration::Parse(computed, "calibration.json");
+  const virtual_cabinet::Scene scene =
+      virtual_cabinet::Scene::Load(kSource / "boards/virtual/scenes/calibration.json");
+  test_support::ExpectParametersMatchTruth(ours,
+                                           Calibration::Parse(scene.TrueCalibration(), "truth"));
+  const virtual_cabinet::Scene cuboid =
+      virtual_cabinet::Scene::Load(kSource / "boards/virtual/scenes/cuboid.json");
+  const auto rows =
+      test_support::CompareWithTruth(ours, cuboid, test_support::SweepTruth(cuboid, 6));
+  std::printf("%s", test_support::FormatAgreement(rows).c_str());
+  ASSERT_EQ(rows.size(), 6u);
+  for (const auto& row : rows) {
+    EXPECT_LE(row.rms_px, 0.05) << row.camera << " " << row.view;
+    EXPECT_LE(row.max_px, 0.15) << row.camera << " " << row.view;
+    EXPECT_LE(row.rms_mm, 0.1) << row.camera << " " << row.view;
+    EXPECT_LE(row.max_mm, 0.3) << row.camera << " " << row.view;
   }
   // The laser sweep measured the panels (6 mm behind the mirrors in the scene) through the
   // calibration just made, whose own small errors limit it to a few tenths of a mm; what
@@ -131,11 +173,23 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
     EXPECT_NEAR(offset["measured_mm"].get<double>(), 6.0, 0.5) << offset;
     EXPECT_EQ(computed["mirrors"][side]["panel_offset_mm"], offset["measured_mm"]);
   }
-  EXPECT_NE(run.out.find("PASS: left panel 6."), std::string::npos) << run.out;
+  EXPECT_NEAR(NumberAfter(run.out, "PASS: left panel "), 6.0, 0.1) << run.out;
   EXPECT_NEAR(computed["lasers"]["spacing_mm"].get<double>(), 200.0, 0.1);
   EXPECT_NEAR(computed["lasers"]["offsets_mm"][2].get<double>(), 400.0, 0.2);
   // Measured, so later scans' readback is checked against it without being told.
   EXPECT_NEAR(computed["lasers"]["readback_offset_mm"].get<double>(), 50.0, 0.1);
+}
+
+TEST_F(FactoryCalibrateTest, WithoutALensStepTheTargetAloneIsRefused) {
+  StartDaemon(kSource / "boards/virtual/scenes/calibration.json");
+  const Result run = FactoryCalibrate(dir_ / "out", "");
+  EXPECT_EQ(run.exit_code, 1) << run.out;
+  EXPECT_NE(run.out.find("no --chessboard or --intrinsics; the target alone sets its lens"),
+            std::string::npos)
+      << run.out;
+  EXPECT_NE(run.out.find("the lens model rests on data on only"), std::string::npos) << run.out;
+  EXPECT_NE(run.out.find("the device's calibration is unchanged"), std::string::npos) << run.out;
+  EXPECT_FALSE(fs::exists(dir_ / "data/calibration.json"));
 }
 
 TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {
@@ -144,7 +198,7 @@ TEST_F(FactoryCalibrateTest, PanelOutOfPlaceFailsAndUploadsNothing) {
 
   const Result run = FactoryCalibrate(dir_ / "out");
   EXPECT_EQ(run.exit_code, 1) << run.out;
-  EXPECT_NE(run.out.find("FAIL: left panel: measured 9."), std::string::npos) << run.out;
+  EXPECT_NEAR(NumberAfter(run.out, "FAIL: left panel: measured "), 9.0, 0.1) << run.out;
   EXPECT_NE(run.out.find("check how the panel is mounted"), std::string::npos) << run.out;
   EXPECT_EQ(run.out.find("FAIL: right panel"), std::string::npos) << run.out;
   EXPECT_NE(run.out.find("the device's calibration is unchanged"), std::string::npos) << run.out;

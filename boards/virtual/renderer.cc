@@ -602,9 +602,15 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
           // Panels and target quads are seen from either side; closed meshes only from outside.
           if (material == Material::kSubject && normal.dot(virtual_center - mid) <= 0) continue;
           auto project = [&](const Eigen::Vector3d& point) {
+            // One bounce through the mirror's true (possibly bumped) surface; two bounces
+            // through the planes (a bumped double bounce fails the trace check below).
             Eigen::Vector3d q = point;
-            for (auto it = path.rbegin(); it != path.rend(); ++it)
-              q = scene_.mirrors[*it].plane.ReflectPoint(q);
+            if (path.size() == 1) {
+              q = scene_.mirrors[path[0]].ImageOf(point, center);
+            } else {
+              for (auto it = path.rbegin(); it != path.rend(); ++it)
+                q = scene_.mirrors[*it].plane.ReflectPoint(q);
+            }
             return cam.ProjectWorld(q);
           };
           const auto pa = project(ends[0]), pb = project(ends[1]);

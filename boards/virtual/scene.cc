@@ -101,6 +101,25 @@ std::optional<Ray3d> Mirror::Reflect(const Ray3d& ray) const {
   return Ray3d{hit, (ray.direction - 2.0 * n.dot(ray.direction) * n).normalized()};
 }
 
+Eigen::Vector3d Mirror::ImageOf(const Eigen::Vector3d& point, const Eigen::Vector3d& eye) const {
+  Eigen::Vector3d image = plane.ReflectPoint(point);
+  if (bump_mm == 0.0) return image;
+  // Fixed point: the mirror point the eye sees the image through, the surface's tangent
+  // plane there, the point reflected in it. Millimetre bumps over a 620 mm mirror tilt it
+  // by milliradians, so a few rounds settle far below a micrometre.
+  for (int round = 0; round < 8; ++round) {
+    const Ray3d sight{eye, (image - eye).normalized()};
+    const auto t = IntersectRayPlane(sight, plane, 1e-6);
+    if (!t) return image;
+    const Eigen::Vector2d local = Local(sight.At(*t));
+    const Eigen::Vector3d normal = SurfaceNormal(local);
+    const Eigen::Vector3d on_surface = sight.At(*t) + Displacement(local) * plane.normal;
+    const Plane tangent{normal, -normal.dot(on_surface)};
+    image = tangent.ReflectPoint(point);
+  }
+  return image;
+}
+
 std::array<Eigen::Vector3d, 4> Mirror::Corners() const {
   return {origin, origin + width * along, origin + width * along + height * up,
           origin + height * up};

@@ -48,6 +48,10 @@ struct Mirror {
   Eigen::Vector3d SurfaceNormal(const Eigen::Vector2d& local) const;
   // Reflects a ray that meets the mirror; nullopt if it misses the mirror's rectangle.
   std::optional<Ray3d> Reflect(const Ray3d& ray) const;
+  // Where an eye at `eye` sees `point` in this mirror: the virtual point behind it, on the
+  // line from the eye through the mirror point where the law of reflection holds. A flat
+  // mirror's is plane.ReflectPoint(point); a bumped one's differs by the local tilt.
+  Eigen::Vector3d ImageOf(const Eigen::Vector3d& point, const Eigen::Vector3d& eye) const;
   std::array<Eigen::Vector3d, 4> Corners() const;
   TriangleMesh Mesh() const;
 };

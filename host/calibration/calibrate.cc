@@ -648,7 +648,7 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
   if (!root.Has("calibration")) return s;
   const JsonReader r = root.Object("calibration");
   r.AllowOnly({"target", "target_id", "mirror_width_mm", "mirror_height_mm", "mirror_bottom_mm",
-               "panel_offset_mm", "corner_xy_mm", "limits"});
+               "panel_offset_mm", "corner_xy_mm", "lens_chessboard", "limits"});
   if (r.Has("target")) s.target = virtual_cabinet::TargetConfig::Parse(r.Object("target"));
   s.target_id = r.String("target_id", s.target_id);
   s.mirror_width_mm = r.Number("mirror_width_mm", s.mirror_width_mm, 10.0, 1e4);
@@ -657,6 +657,13 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
   s.panel_offset_mm = r.Number("panel_offset_mm", s.panel_offset_mm, 0.0, 1000.0);
   const auto corner = r.Numbers("corner_xy_mm", 2, std::vector<double>{0.0, 600.0});
   s.corner_xy_mm = {corner[0], corner[1]};
+  if (r.Has("lens_chessboard")) {
+    const JsonReader b = r.Object("lens_chessboard");
+    b.AllowOnly({"columns", "rows", "square_mm"});
+    s.lens_chessboard.columns = b.Integer("columns", s.lens_chessboard.columns, 2, 100);
+    s.lens_chessboard.rows = b.Integer("rows", s.lens_chessboard.rows, 2, 100);
+    s.lens_chessboard.square_mm = b.Number("square_mm", s.lens_chessboard.square_mm, 1.0, 500.0);
+  }
   if (r.Has("limits")) {
     const JsonReader l = r.Object("limits");
     l.AllowOnly({"max_rms_px", "min_markers_per_view", "min_contrast_dn", "max_edge_sigma_px",

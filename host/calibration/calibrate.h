@@ -39,9 +39,8 @@ struct CalibrationLimits {
   // fitted to (chessboard corners of the lens calibration, target corners): distortion is
   // only known where there are data, and the cabinet uses the whole image. The target
   // alone covers 22-25 %, a lens calibration from LensCalibrationPoses' 30 captures 90 %.
-  // Reported always; enforced once set (0.85) — off by default until the factory script
-  // runs the lens step (docs/calibration.md, "Lens over the whole field").
-  double min_lens_coverage = 0.0;
+  // Below this the lens is refused (docs/calibration.md, "Lens over the whole field").
+  double min_lens_coverage = 0.85;
 };
 
 // board.json's "calibration" section (every key optional) plus the camera names.
@@ -55,6 +54,12 @@ struct CalibrationSettings {
   double panel_offset_mm =
       6.0;  // nominal; one target image cannot see it, a laser sweep measures it
   Eigen::Vector2d corner_xy_mm{0.0, 600.0};  // where the mirrors meet, nominal
+  // The chessboard held in front of each camera for the lens step
+  // (scripts/factory-calibrate --chessboard, calibrate-intrinsics).
+  struct LensChessboard {
+    int columns = 11, rows = 8;  // inner corners
+    double square_mm = 25.0;
+  } lens_chessboard;
   CalibrationLimits limits;
 
   static CalibrationSettings FromBoard(const nlohmann::json& board, const std::string& file);

@@ -72,8 +72,13 @@ PatternView DetectChessboard(const cv::Mat& gray, const CalibrationPattern& patt
     throw IntrinsicsError(image_name + ": no " + std::to_string(pattern.columns) + "x" +
                           std::to_string(pattern.rows) + " chessboard found");
   }
-  // The window and stopping rule of OpenCV's calibration sample.
-  cv::cornerSubPix(gray, view.corners_px, cv::Size(11, 11), cv::Size(-1, -1),
+  // The window and stopping rule of OpenCV's calibration sample, on the image smoothed
+  // first: cornerSubPix fits to gradients, which the sensor's noise dominates; a Gaussian
+  // of 1.5 px (small against the squares) took the corners on the virtual cabinet's
+  // captures from 0.041 to 0.030 px RMS from the true ones (docs/calibration.md).
+  cv::Mat smoothed;
+  cv::GaussianBlur(gray, smoothed, cv::Size(0, 0), 1.5);
+  cv::cornerSubPix(smoothed, view.corners_px, cv::Size(11, 11), cv::Size(-1, -1),
                    cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 30, 1e-4));
   for (int r = 0; r < pattern.rows; ++r) {
     for (int c = 0; c < pattern.columns; ++c) {

@@ -3,16 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <map>
+#include <numbers>
 #include <stdexcept>
 
-#include <unistd.h>
-
+#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
-#include "boards/virtual/chessboard.h"
 #include "host/calibration/intrinsics.h"
 
 namespace mirrorscan::test_support {
@@ -135,74 +132,76 @@ std::string FormatAgreement(const std::vector<ViewAgreement>& rows) {
 
 namespace mirrorscan::test_support {
 
+// Camera rotation, centre and intrinsics and both mirror planes against the truth.
+void ExpectParametersMatchTruth(const Calibration& ours, const Calibration& truth) {
+  constexpr double kDeg = std::numbers::pi / 180.0;
+  for (const CalibrationCamera& c : ours.cameras) {
+    const Camera& t = truth.FindCamera(c.name)->camera;
+    const CameraIntrinsics& k = c.camera.intrinsics;
+    const double rotation =
+        c.camera.cam_from_world.rotation.angularDistance(t.cam_from_world.rotation) / kDeg;
+    const double centre = (c.camera.CenterInWorld() - t.CenterInWorld()).norm();
+    std::printf(
+        "camera %s: rotation off by %.4f°, centre by %.3f mm, fx %.3f fy %.3f (true %.3f), "
+        "cx %.3f cy %.3f (true %.3f %.3f), k1 %.5f k2 %.5f k3 %.5f (true %.5f %.5f %.5f)\n",
+        c.name.c_str(), rotation, centre, k.fx, k.fy, t.intrinsics.fx, k.cx, k.cy, t.intrinsics.cx,
+        t.intrinsics.cy, k.k1, k.k2, k.k3, t.intrinsics.k1, t.intrinsics.k2, t.intrinsics.k3);
+    EXPECT_LT(rotation, 0.04) << c.name;  // measured 0.024-0.026°
+    EXPECT_LT(centre, 1.0) << c.name;
+    EXPECT_LT(std::abs(k.fx / t.intrinsics.fx - 1.0), 5e-4) << c.name;
+    EXPECT_LT(std::abs(k.fy / t.intrinsics.fy - 1.0), 5e-4) << c.name;
+    EXPECT_LT(std::abs(k.cx - t.intrinsics.cx), 1.0) << c.name;
+    EXPECT_LT(std::abs(k.cy - t.intrinsics.cy), 1.0) << c.name;
+    // Distortion where it acts: at 0.9 of the half-diagonal (normalised radius ~0.41).
+    const double r = 0.9 * 640.0 / t.intrinsics.fx;
+    const Eigen::Vector2d edge(r / std::sqrt(2.0), r / std::sqrt(2.0));
+    const double shift_px =
+        ((c.camera.intrinsics.Distort(edge) - t.intrinsics.Distort(edge)) * t.intrinsics.fx).norm();
+    std::printf("camera %s: distortion at the image's corner differs by %.4f px\n", c.name.c_str(),
+                shift_px);
+    EXPECT_LT(shift_px, 0.2) << c.name;  // measured 0.14 px
+  }
+  for (const CalibrationMirror& m : ours.mirrors) {
+    const Plane& t = truth.FindMirror(m.name)->plane;
+    const double angle = std::acos(std::clamp(m.plane.normal.dot(t.normal), -1.0, 1.0)) / kDeg;
+    const double offset = std::abs(m.plane.offset - t.offset);
+    std::printf("mirror %s: normal off by %.5f°, offset by %.4f mm\n", m.name.c_str(), angle,
+                offset);
+    EXPECT_LT(angle, 0.01) << m.name;
+    EXPECT_LT(offset, 0.15) << m.name;  // measured 0.06 (two cameras), 0.11 mm (one)
+  }
+}
+
+}  // namespace mirrorscan::test_support
+
+namespace mirrorscan::test_support {
+
 namespace fs = std::filesystem;
 
 CabinetLens LensOf(const virtual_cabinet::Scene& scene, int camera) {
   const std::string name = scene.cameras.at(camera).name;
-  const fs::path dir = fs::path(MIRRORSCAN_TEST_DATA_DIR) / "chessboard";
-  CabinetLens lens;
-  lens.captures_dir = dir / name;
-  lens.intrinsics_json = dir / (name + "-intrinsics.json");
+  const fs::path dir = fs::path(MIRRORSCAN_TEST_DATA_DIR) / "lens";
+  // tests/support/cabinet-lens renders the chessboard scene's cameras: the lens is this
+  // scene's only if the camera is the same.
   const virtual_cabinet::Scene board_scene = virtual_cabinet::Scene::Load(
       fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/scenes/chessboard.json");
-  // A lens of the same camera (intrinsics and pose) is reused.
-  nlohmann::json key = {
-      {"fx", scene.cameras[camera].camera.intrinsics.fx},
-      {"k1", scene.cameras[camera].camera.intrinsics.k1},
-      {"k2", scene.cameras[camera].camera.intrinsics.k2},
-      {"t",
-       {scene.cameras[camera].camera.cam_from_world.translation.x(),
-        scene.cameras[camera].camera.cam_from_world.translation.y(),
-        scene.cameras[camera].camera.cam_from_world.translation.z()}},
-      {"board",
-       {board_scene.chessboard->config().inner_columns, board_scene.chessboard->config().inner_rows,
-        board_scene.chessboard->config().square_mm, board_scene.seed,
-        board_scene.sensor.ambient_dn}}};
-  nlohmann::json& poses_key = key["poses"];
-  for (const auto& pose : virtual_cabinet::LensCalibrationPoses(
-           scene.cameras[camera].camera, board_scene.chessboard->config(), 900.0)) {
-    poses_key.push_back({pose.center_mm.x(), pose.center_mm.y(), pose.center_mm.z()});
+  const auto same = std::find_if(board_scene.cameras.begin(), board_scene.cameras.end(),
+                                 [&](const auto& c) { return c.name == name; });
+  const CameraIntrinsics& k = scene.cameras[camera].camera.intrinsics;
+  if (same == board_scene.cameras.end() || same->camera.intrinsics.fx != k.fx ||
+      same->camera.intrinsics.k1 != k.k1 || same->camera.intrinsics.k2 != k.k2 ||
+      same->camera.intrinsics.cx != k.cx || same->camera.intrinsics.cy != k.cy) {
+    throw std::runtime_error("camera " + name +
+                             " differs from the chessboard scene's: no lens calibration for it");
   }
-  const fs::path key_file = dir / (name + "-key.json");
-  bool fresh = fs::exists(lens.intrinsics_json) && fs::exists(key_file);
-  if (fresh) {
-    std::ifstream in(key_file);
-    fresh = nlohmann::json::parse(in, nullptr, false) == key;
+  if (!fs::exists(dir / "done")) {
+    throw std::runtime_error("no lens calibration in " + dir.string() +
+                             ": the ctest fixture cabinet_lens (tests/support/cabinet-lens) "
+                             "makes it");
   }
-  if (!fresh) {
-    virtual_cabinet::Scene base = board_scene;
-    base.cameras = {scene.cameras[camera]};
-    base.lasers.power = 0.0;
-    const auto poses = virtual_cabinet::LensCalibrationPoses(
-        base.cameras[0].camera, board_scene.chessboard->config(), 900.0);
-    fs::create_directories(lens.captures_dir);
-    std::vector<fs::path> images;
-    for (size_t i = 0; i < poses.size(); ++i) {
-      virtual_cabinet::Scene s = base;
-      s.chessboard.emplace(poses[i]);
-      const virtual_cabinet::Renderer renderer(s);
-      const auto frame = renderer.RenderFrame(0, 0.0, i, /*lasers_on=*/false);
-      const cv::Mat gray(frame.height, frame.width, CV_8UC1,
-                         const_cast<uint8_t*>(frame.pixels.data()));
-      char file[64];
-      std::snprintf(file, sizeof file, "%s_chessboard%02zu.png", name.c_str(), i);
-      images.push_back(lens.captures_dir / file);
-      if (!cv::imwrite(images.back().string(), gray)) {
-        throw std::runtime_error("cannot write " + images.back().string());
-      }
-    }
-    CalibrationPattern pattern;
-    pattern.columns = board_scene.chessboard->config().inner_columns;
-    pattern.rows = board_scene.chessboard->config().inner_rows;
-    pattern.square_mm = board_scene.chessboard->config().square_mm;
-    const IntrinsicsResult result = CalibrateIntrinsics(images, pattern);
-    // Written beside and renamed, so a test running alongside never reads half a file.
-    const fs::path partial =
-        lens.intrinsics_json.string() + ".partial." + std::to_string(::getpid());
-    std::ofstream(partial) << IntrinsicsToJson(result).dump(1) << "\n";
-    fs::rename(partial, lens.intrinsics_json);
-    std::ofstream(key_file) << key.dump() << "\n";
-  }
+  CabinetLens lens;
+  lens.captures_dir = dir / "captures";
+  lens.intrinsics_json = dir / (name + ".json");
   const LensCalibration read = ReadLensJson(lens.intrinsics_json);
   lens.intrinsics = read.intrinsics;
   lens.support_px = read.support_px;

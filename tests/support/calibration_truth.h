@@ -53,16 +53,19 @@ std::vector<ViewAgreement> CompareWithTruth(const Calibration& estimate,
 // A Markdown table of the above.
 std::string FormatAgreement(const std::vector<ViewAgreement>& rows);
 
+// Googletest checks (and a printed line each) of every camera's rotation, centre,
+// intrinsics and distortion and every mirror plane of `estimate` against `truth`, within
+// what the factory flow reaches (docs/calibration.md).
+void ExpectParametersMatchTruth(const Calibration& estimate, const Calibration& truth);
+
 }  // namespace mirrorscan::test_support
 
 namespace mirrorscan::test_support {
 
-// The factory's lens step on the virtual cabinet: a chessboard (scenes/chessboard.json)
-// held in front of `camera` in the poses an operator uses (LensCalibrationPoses), the
-// captures written as <dir>/<camera>_chessboardNN.png and calibrated with
-// calibrate-intrinsics' own code into <dir>/<camera>-intrinsics.json. Rendering takes
-// about a minute per camera, so both files are kept under the build tree's test-data/
-// and reused while the camera, the board and the poses are the same.
+// The factory's lens step on the virtual cabinet, as the ctest fixture cabinet_lens makes
+// it (tests/support/cabinet-lens: `mirrorscan sim chessboard`, then calibrate-intrinsics on
+// each camera's captures) into the build tree's test-data/lens/. Throws when the fixture
+// has not run or the scene's camera is not the one it calibrated.
 struct CabinetLens {
   std::filesystem::path captures_dir;  // the PNGs
   std::filesystem::path intrinsics_json;
