@@ -40,7 +40,10 @@ function(mirrorscan_add_test)
     set(ARG_TIMEOUT 600)
   endif()
   # FIXTURES: ctest fixtures the tests need set up first (e.g. cabinet_lens, tests/).
-  set(_properties TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}")
+  set(_properties TIMEOUT ${ARG_TIMEOUT})
+  if(ARG_LABELS)
+    list(APPEND _properties LABELS "${ARG_LABELS}")
+  endif()
   if(ARG_FIXTURES)
     list(APPEND _properties FIXTURES_REQUIRED "${ARG_FIXTURES}")
     target_compile_definitions(${ARG_NAME} PRIVATE
