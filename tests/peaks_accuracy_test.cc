@@ -511,14 +511,15 @@ const WideTable& Wide() {
 
 // Issue 18's targets at every width from the sharp default to stripe sigma 2.5 px and on
 // skin: RMS <= 0.03 px against the truth where the truth is defined, recall >= 99.5 %,
-// <= 1 false peak per frame. Recall is met (>= 99.97 %). False peaks are met but at blur
-// 2.0 px (1.17 per frame, as gaussian3) and on the saturated wide stripes (30.5, the plain
-// CoM 11.3): all of them on real laser light past the truth's ends (none unlit). The RMS
+// <= 1 false peak per frame. Recall is met (>= 99.91 %). False peaks are met but on the
+// saturated wide stripes (2.83 per frame, the plain CoM 11.3; 30.5 before wide stripes' ends
+// were peeled, peaks.cc kWideEndPeel): all of them on real laser light past the truth's ends
+// (none unlit), where clipping hides how much dimmer the column is. The RMS
 // is not: 0.035 ... 0.080 px over all clean peaks (>= 26 DN), 0.019 ... 0.039 px on those
 // >= 60 DN (docs/peak-extraction.md). These bounds are guards just above the measured
-// figures, and the default must beat gaussian3 and the plain CoM in every condition. With skin's tail the truth (the plane's trace) is not the light's centre
-// (the default is 0.43 px off it, as every estimator): there the figures are against the
-// noise-free light centre.
+// figures, and the default must beat gaussian3 and the plain CoM in every condition. With skin's
+// tail the truth (the plane's trace) is not the light's centre (the default is 0.43 px off it, as
+// every estimator): there the figures are against the noise-free light centre.
 TEST(PeaksAccuracyTest, WideStripesOnRenderedFrames) {
   for (const WideCondition& c : WideConditions()) {
     const std::vector<Figures>& row = Wide().figures.at(c.name);
@@ -528,7 +529,7 @@ TEST(PeaksAccuracyTest, WideStripesOnRenderedFrames) {
     EXPECT_GT(f.accuracy_peaks, 3000);
     EXPECT_GE(f.recall, 0.995);
     EXPECT_GE(f.bright_recall, 0.995);
-    EXPECT_LE(f.false_per_frame, saturated ? 35.0 : 1.5);
+    EXPECT_LE(f.false_per_frame, saturated ? 4.0 : 1.0);
     EXPECT_LE(f.unlit_false_per_frame, 0.25);
     for (size_t k = 1; k < row.size(); ++k) {
       EXPECT_LT(c.tail ? f.light_centre_rms : f.rms, c.tail ? row[k].light_centre_rms : row[k].rms)

@@ -300,59 +300,78 @@ bool HalfMaxCrossings(const S& s, int first, int last, int n, float half, float*
 // hold the tails of a wide stripe, so the background is measured again beyond its reach:
 // 3-row means from 3 sigma + 1 out, linear through both; NaN (take the 3-point fit) if
 // they disagree by more than threshold/2 (a neighbouring line, an ambient step). Then the
-// background-subtracted centre of mass over +-kWideWindowSigmas sigma, the window recentred on the
-// estimate twice (a window centred on the integer top would pull the estimate towards it), its end
-// pixels weighted by the part of them inside.
+// background-subtracted centre of mass over +-kWideWindowSigmas sigma, the window recentred on its
+// own estimate until it settles (a window centred on the integer top would pull the estimate
+// towards it), its end pixels weighted by the part of them inside.
 float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float width, float thr,
                  float start) {
   const float sigma = width * (1.0f / 2.3548f);
   const int reach = static_cast<int>(std::ceil(3.0f * sigma)) + 1;
-  auto mean3 = [&](int first) {
-    return (static_cast<float>(search.At(u, first) + search.At(u, first + 1) +
-                               search.At(u, first + 2))) *
-           (1.0f / 3.0f);
-  };
-  const float left = mean3(r0 - reach - 2), right = mean3(r1 + reach);
-  const float x_left = static_cast<float>(r0 - reach - 1);
-  const float x_right = static_cast<float>(r1 + reach + 1);
+  // The column's samples from the left background's first row to the right one's last, read
+  // once (the passes below reread them): rows lo_row + i.
+  constexpr int kMaxSamples = 96;
+  const int lo_row = r0 - reach - 2, hi_row = r1 + reach + 2;
+  const int count = hi_row - lo_row + 1;
+  if (count > kMaxSamples) return kNaN;
+  float raw[kMaxSamples];
+  for (int i = 0; i < count; ++i) raw[i] = static_cast<float>(search.At(u, lo_row + i));
+  const float left = (raw[0] + raw[1] + raw[2]) * (1.0f / 3.0f);
+  const float right = (raw[count - 3] + raw[count - 2] + raw[count - 1]) * (1.0f / 3.0f);
   // Flanks that disagree mean a neighbouring line or an ambient step within the wide
   // support: the 3-point fit, which reads only the top, is the safer estimate there.
   if (std::abs(left - right) > 0.5f * thr) return kNaN;
-  const float slope = (right - left) / (x_right - x_left);
-  const float base = left - slope * x_left;
+  // Background-subtracted samples, in coordinates x = row - lo_row (means centred on x = 1
+  // and count - 2).
+  const float slope = (right - left) / static_cast<float>(count - 3);
+  float sample[kMaxSamples];
+  for (int i = 0; i < count; ++i) sample[i] = raw[i] - (left + slope * static_cast<float>(i - 1));
+  // Within a pixel the light is taken as linear, s + g x with the slope g of the
+  // neighbours, so a partly covered end pixel counts the light of its covered part. A whole
+  // pixel i holds mass s and moment i s + g / 12: prefix sums of those make each pass below
+  // two partial end pixels and two differences. Samples <= 0 count nothing.
+  float gradient[kMaxSamples] = {};
+  float mass_sum[kMaxSamples + 1], moment_sum[kMaxSamples + 1];
+  mass_sum[0] = moment_sum[0] = 0;
+  for (int i = 0; i < count; ++i) {
+    if (i > 0 && i + 1 < count) gradient[i] = 0.5f * (sample[i + 1] - sample[i - 1]);
+    const bool lit = sample[i] > 0 && i > 0 && i + 1 < count;
+    mass_sum[i + 1] = mass_sum[i] + (lit ? sample[i] : 0.0f);
+    moment_sum[i + 1] =
+        moment_sum[i] +
+        (lit ? static_cast<float>(i) * sample[i] + gradient[i] * (1.0f / 12.0f) : 0.0f);
+  }
+  // The part [x0, x1] of pixel i inside the window (relative to its centre), its mass and
+  // moment.
+  auto partial = [&](int i, float x0, float x1, float* mass, float* moment) {
+    const float s = sample[i];
+    if (!(x1 > x0) || !(s > 0)) return;
+    const float g = gradient[i];
+    const float p1 = 0.5f * (x1 * x1 - x0 * x0), p2 = (x1 * x1 * x1 - x0 * x0 * x0) / 3.0f;
+    const float m = s * (x1 - x0) + g * p1;
+    *mass += m;
+    *moment += static_cast<float>(i) * m + s * p1 + g * p2;
+  };
   const float half = kWideWindowSigmas * sigma;
   // From the middle of the half-maximum crossings (within a few hundredths of a pixel of
   // the centre), each pass leaves ~0.23 of the window's offset from the stripe's centre (at
   // +-2 sigma): recentre until it moves by less than 1e-3 px.
-  float centre = start;
+  float centre = start - static_cast<float>(lo_row);
   for (int pass = 0; pass < 8; ++pass) {
     const float a = centre - half, b = centre + half;
-    float sum = 0, moment = 0;
-    for (int r = static_cast<int>(std::floor(a + 0.5f)); r <= static_cast<int>(std::ceil(b - 0.5f));
-         ++r) {
-      const float rf = static_cast<float>(r);
-      // The part [x0, x1] of pixel r inside the window, relative to its centre.
-      const float x0 = std::max(-0.5f, a - rf), x1 = std::min(0.5f, b - rf);
-      if (!(x1 > x0)) continue;
-      auto sample = [&](int row) {
-        return static_cast<float>(search.At(u, row)) - (base + slope * static_cast<float>(row));
-      };
-      const float s = sample(r);
-      if (!(s > 0)) continue;
-      // Within the pixel the light is taken as linear, s + g x with the slope g of the
-      // neighbours, so a partly covered end pixel counts the light of its covered part.
-      const float g = 0.5f * (sample(r + 1) - sample(r - 1));
-      const float p1 = 0.5f * (x1 * x1 - x0 * x0), p2 = (x1 * x1 * x1 - x0 * x0 * x0) / 3.0f;
-      const float mass = s * (x1 - x0) + g * p1;
-      sum += mass;
-      moment += rf * mass + s * p1 + g * p2;
-    }
+    const int first = static_cast<int>(std::floor(a + 0.5f));
+    const int last = static_cast<int>(std::ceil(b - 0.5f));
+    if (first < 1 || last > count - 2 || last - first < 2) return kNaN;
+    // Whole pixels first + 1 .. last - 1, then the two end pixels' covered parts.
+    float sum = mass_sum[last] - mass_sum[first + 1];
+    float moment = moment_sum[last] - moment_sum[first + 1];
+    partial(first, std::max(-0.5f, a - static_cast<float>(first)), 0.5f, &sum, &moment);
+    partial(last, -0.5f, std::min(0.5f, b - static_cast<float>(last)), &sum, &moment);
     if (!(sum > 0)) return kNaN;
     const float moved = moment / sum - centre;
     centre += moved;
     if (std::abs(moved) < 1e-3f) break;
   }
-  return centre;
+  return centre + static_cast<float>(lo_row);
 }
 
 // Refines one candidate (u, r0) into a peak; false if it is no laser peak. A pure function
@@ -508,6 +527,10 @@ bool ByStrength(const Peak& a, const Peak& b) {
 // Along-stripe smoothing (peaks.h, along_stripe_half_width).
 constexpr float kLinkPx = 1.5f;   // A neighbour column's peak this close continues the stripe.
 constexpr float kKinkPx = 0.75f;  // Max |second difference| of three consecutive rows.
+// A wide stripe's end (FWHM >= kWideStripeFwhmPx) against the brightest of this many
+// columns further in; at most kWideEndPeel columns of its fading end are dropped.
+constexpr int kWideEndColumns = 3;
+constexpr int kWideEndPeel = 4;
 
 // Savitzky-Golay weights of the centre of a quadratic through 2m + 1 equally spaced
 // samples: w_k = (3 (3m^2 + 3m - 1) - 15 k^2) / ((2m + 1)(4m^2 + 4m - 3)), k = 0 .. m.
@@ -594,8 +617,28 @@ void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* star
     }
     if (left < 0 && right < 0) {
       (*dropped)[i] = params.drop_isolated_peaks;
+    } else if (p[i].width < kWideStripeFwhmPx) {
+      (*dropped)[i] =
+          (*dropped)[i] || p[i].intensity < end_ratio * p[left < 0 ? right : left].intensity;
     } else {
-      (*dropped)[i] = p[i].intensity < end_ratio * p[left < 0 ? right : left].intensity;
+      // A wide stripe is blurred as much along u as across it, so its light goes on past its
+      // end for a few columns, fading over them: on wide clipped stripes those columns were
+      // ~30 false peaks per frame, each less than half as bright as the stripe a few columns
+      // in but often more than half its neighbour. So the end is compared with the brightest
+      // of the next kWideEndColumns columns in, and while it is dropped the next column in
+      // becomes the end (at most kWideEndPeel columns).
+      const int side = left < 0 ? 1 : 0;  // links[2j + side] go into the stripe
+      int32_t end = static_cast<int32_t>(i);
+      for (int peeled = 0; peeled < kWideEndPeel; ++peeled) {
+        float brightest = 0;
+        int32_t j = link[2 * end + side];
+        for (int k = 0; k < kWideEndColumns && j >= 0; ++k, j = link[2 * j + side])
+          brightest = std::max(brightest, p[j].intensity);
+        if (!(p[end].intensity < end_ratio * brightest)) break;
+        (*dropped)[end] = 1;
+        end = link[2 * end + side];
+        if (link[2 * end + side] < 0 || p[end].width < kWideStripeFwhmPx) break;
+      }
     }
   }
   for (size_t i = 0; i < 2 * count; ++i)

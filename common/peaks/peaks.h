@@ -5,16 +5,15 @@
 //
 // Two stages, shared by both implementations:
 //  1. Candidates (integer rows). Row r of column u is a candidate when it starts a local
-//     maximum (I[r-1] < I[r] >= I[r+1]) and rises at least threshold_dn above the local
-//     background b(r) = min(A(r-W .. r-W+3), A(r+W-3 .. r+W)), where A(a..a+3) is the
-//     rounded 4-row mean avg(avg(I[a], I[a+1]), avg(I[a+2], I[a+3])) with
-//     avg(x, y) = (x + y + 1) >> 1 and W = window. Rows outside the ROI are clamped to it.
-//     The step rule drops a single top (I[r+1] < I[r]) whose flank means prove an ambient
-//     step (2 |A_l - A_r| >= threshold_dn + 3) when every row on one side, out to W, has
-//     2 I > I[r] + b(r): the refinement would find no half-maximum crossing there, so this
-//     only saves its work (on rendered frames it drops 57 % of the candidates).
-//     ExtractPeaks computes this with SIMD over rows (many columns per vector);
-//     ExtractPeaksScalar walks each column. Both give the same candidates.
+//     maximum over five rows (I[r-2], I[r-1] < I[r] >= I[r+1], I[r+2]) and rises at least
+//     threshold_dn above the local background b(r) = min(A(r-W .. r-W+3), A(r+W-3 .. r+W)), where
+//     A(a..a+3) is the rounded 4-row mean avg(avg(I[a], I[a+1]), avg(I[a+2], I[a+3])) with avg(x,
+//     y) = (x + y + 1) >> 1 and W = window. Rows outside the ROI are clamped to it. The step rule
+//     drops a single top (I[r+1] < I[r]) whose flank means prove an ambient step (2 |A_l - A_r| >=
+//     threshold_dn + 3) when every row on one side, out to W, has 2 I > I[r] + b(r): the refinement
+//     would find no half-maximum crossing there, so this only saves its work (on rendered frames it
+//     drops 57 % of the candidates). ExtractPeaks computes this with SIMD over rows (many columns
+//     per vector); ExtractPeaksScalar walks each column. Both give the same candidates.
 //  2. Refinement (scalar, per candidate, identical in both): plateau, local linear
 //     background from the two flanks, FWHM, width checks, sub-pixel estimator, score;
 //     then per column: min_separation_px (keep the stronger) and max_peaks_per_column

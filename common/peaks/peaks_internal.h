@@ -32,6 +32,11 @@ struct CandidateSearch {
   bool IsCandidate(int u, int r) const {
     const int c = At(u, r);
     if (!(At(u, r - 1) < c && At(u, r + 1) <= c)) return false;
+    // Over five rows: a maximum of the noise on a wide stripe's top or shoulder within two
+    // rows of a brighter sample is no stripe of its own (a second stripe there would be
+    // closer than any min_separation_px keeps), and refining it cost most of the time on
+    // wide frames.
+    if (!(At(u, r - 2) < c && At(u, r + 2) <= c)) return false;
     const int upper = Mean4(u, r - window), lower = Mean4(u, r + window - 3);
     if (c - std::min(upper, lower) < threshold) return false;
     return !NeverHalfHeight(u, r, upper, lower);

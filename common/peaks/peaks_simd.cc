@@ -47,6 +47,8 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<Candidate>* out, R
     const uint8_t* up = row(r - 1);
     const uint8_t* c = row(r);
     const uint8_t* dn = row(r + 1);
+    const uint8_t* up2 = row(r - 2);
+    const uint8_t* dn2 = row(r + 2);
     const uint8_t* l0 = row(r - w);
     const uint8_t* l1 = row(r - w + 1);
     const uint8_t* l2 = row(r - w + 2);
@@ -68,8 +70,11 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<Candidate>* out, R
       const auto ar = Avg(d, Avg(d, hn::LoadU(d, r0 + x), hn::LoadU(d, r1 + x)),
                           Avg(d, hn::LoadU(d, r2 + x), hn::LoadU(d, r3 + x)));
       const auto contrast = hn::SaturatedSub(vc, hn::Min(al, ar));
-      const auto below = hn::SaturatedSub(thr, contrast);  // == 0 iff contrast >= thr
-      auto m = hn::AndNot(hn::Eq(rise, zero), hn::Eq(hn::Or(fall, below), zero));
+      const auto below = hn::SaturatedSub(thr, contrast);              // == 0 iff contrast >= thr
+      const auto rise2 = hn::SaturatedSub(vc, hn::LoadU(d, up2 + x));  // != 0 iff c > up2
+      const auto fall2 = hn::SaturatedSub(hn::LoadU(d, dn2 + x), vc);  // == 0 iff dn2 <= c
+      auto m = hn::AndNot(hn::Or(hn::Eq(rise, zero), hn::Eq(rise2, zero)),
+                          hn::Eq(hn::Or(hn::Or(fall, fall2), below), zero));
       if (hn::AllFalse(d, m)) continue;
       // The step rule of peaks_internal.h (only where a candidate is, so rarely). Unsigned
       // compares as saturated differences: a > b iff a - b != 0, a >= b iff b - a == 0.
