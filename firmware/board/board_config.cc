@@ -179,7 +179,8 @@ BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& fi
   const JsonReader r(json, file);
   r.AllowOnly({"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store",
                "service", "virtual",
-               "calibration"});  // "calibration" is the host's (host/calibration)
+               // The host's: host/calibration and host/reconstruction read them.
+               "calibration", "reconstruction"});
   BoardConfig c;
   c.board = NonEmptyString(r, "board");
   c.description = r.String("description");

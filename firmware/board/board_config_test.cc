@@ -120,6 +120,13 @@ TEST_F(BadBoardTest, UnknownTopLevelKey) {
   ExpectError("lazers", "unknown");
 }
 
+// The host's sections ride along in the same file; the device ignores what is in them.
+TEST_F(BadBoardTest, HostSectionsAreAllowed) {
+  json_["calibration"] = {{"mirror_width_mm", 620}};
+  json_["reconstruction"] = {{"bounding_cylinder", {{"radius_mm", 500}}}};
+  EXPECT_NO_THROW(BoardConfig::Parse(json_, "b"));
+}
+
 TEST_F(BadBoardTest, UnknownKeyInSection) {
   json_["scan"]["speed"] = 10;
   ExpectError("scan.speed", "unknown");

@@ -15,8 +15,9 @@ constexpr const char* kProperties =
     "property float x\nproperty float y\nproperty float z\n"
     "property float nx\nproperty float ny\nproperty float nz\n"
     "property uchar camera\nproperty uchar view\nproperty uchar laser\n"
-    "property uint frame\nproperty float u\nproperty float v\nproperty float confidence\n";
-constexpr size_t kRecordSize = 6 * 4 + 3 + 4 + 3 * 4;
+    "property uint frame\nproperty float u\nproperty float v\nproperty float confidence\n"
+    "property uchar rule\n";
+constexpr size_t kRecordSize = 6 * 4 + 3 + 4 + 3 * 4 + 1;
 
 template <typename T>
 char* Put(char* at, T value) {
@@ -37,6 +38,7 @@ void WritePly(const std::filesystem::path& path, const PointCloud& cloud) {
   if (!out) throw std::runtime_error(path.string() + ": cannot write");
   out << "ply\nformat binary_little_endian 1.0\ncomment mirrorscan reconstruct\n"
       << "comment view: 0 center, 1 left, 2 right, 3 left-right, 4 right-left\n"
+      << "comment rule: 0 cylinder, 1 volume, 2 column count, 3 label vote\n"
       << "element vertex " << cloud.points.size() << "\n"
       << kProperties << "end_header\n";
   std::vector<char> buffer(kRecordSize * cloud.points.size());
@@ -51,6 +53,7 @@ void WritePly(const std::filesystem::path& path, const PointCloud& cloud) {
     at = Put(at, p.u);
     at = Put(at, p.v);
     at = Put(at, p.confidence);
+    at = Put(at, static_cast<uint8_t>(p.rule));
   }
   out.write(buffer.data(), static_cast<std::streamsize>(buffer.size()));
   if (!out.flush()) throw std::runtime_error(path.string() + ": cannot write");
@@ -90,6 +93,9 @@ PointCloud ReadPly(const std::filesystem::path& path) {
     at = Get(at, &p.u);
     at = Get(at, &p.v);
     at = Get(at, &p.confidence);
+    uint8_t rule = 0;
+    at = Get(at, &rule);
+    p.rule = static_cast<DecidedBy>(rule);
   }
   return cloud;
 }

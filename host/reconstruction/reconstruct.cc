@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numeric>
 #include <optional>
 #include <tuple>
@@ -228,7 +229,9 @@ int LaserCountOf(const ScanArchive& archive, const Calibration& calibration) {
 LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibration,
                            const std::vector<const CalibrationCamera*>& cameras,
                            const ReconstructOptions& options, std::vector<PeakState>* peaks,
-                           const std::vector<uint32_t>& frame_first, ReconstructSummary* summary) {
+                           const std::vector<uint32_t>& frame_first,
+                           const std::vector<std::optional<Ray3d>>& rays,
+                           ReconstructSummary* summary) {
   LaserPlanes planes;
   planes.count = LaserCountOf(archive, calibration);
   planes.per_frame.resize(archive.frames.size());
@@ -267,7 +270,35 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
       // The calibration measured the panels; one scan's sweep is no better at it.
       lo.fit_panel_offsets = false;
       if (calibration.lasers) lo.normal = calibration.lasers->normal;
-      const LaserHeightResult result = EstimateLaserHeights(archive.frames, cabinet, lo);
+      // The fit undistorts every peak it is given; each peak's ray is already known here,
+      // so it gets only the peaks whose ray meets a panel before any mirror (the same test
+      // it applies), not the subject's.
+      std::vector<FrameRecord> candidates(archive.frames.size());
+      for (size_t f = 0; f < archive.frames.size(); ++f) {
+        const FrameRecord& frame = archive.frames[f];
+        FrameRecord& c = candidates[f];
+        c.camera = frame.camera;
+        c.lasers_on = frame.lasers_on;
+        c.sequence = frame.sequence;
+        c.timestamp_ns = frame.timestamp_ns;
+        c.slide_position_mm = frame.slide_position_mm;
+        for (uint32_t i = frame_first[f]; i < frame_first[f + 1]; ++i) {
+          if (!rays[i]) continue;
+          double nearest = std::numeric_limits<double>::infinity();
+          for (const PlanarRectangle& panel : cabinet.panels)
+            if (const auto t = panel.Intersect(*rays[i]); t && *t < nearest) nearest = *t;
+          if (!std::isfinite(nearest)) continue;
+          if (std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
+                          [&](const PlanarRectangle& m) {
+                            const auto t = m.Intersect(*rays[i]);
+                            return t && *t < nearest;
+                          }))
+            continue;
+          const PeakState& p = (*peaks)[i];
+          c.peaks.push_back(Peak{p.u, p.v, 0.0f, 0.0f, p.score});  // the fit reads u and v
+        }
+      }
+      const LaserHeightResult result = EstimateLaserHeights(candidates, cabinet, lo);
       const LaserFit& fit = result.fit;
       for (size_t f = 0; f < archive.frames.size(); ++f) {
         const double t = fit.TimeS(archive.frames[f].timestamp_ns);
@@ -359,11 +390,10 @@ struct Geometry {
 // Every (view, laser) this peak could be, inside the bounding cylinder.
 void Hypothesize(const Geometry& g, const FrameRecord& frame,
                  const std::array<Plane, kMaxLasers>& planes, int laser_count,
-                 const BoundingCylinder& cylinder, PeakState* peak, std::vector<Hypothesis>* out) {
-  const CalibrationCamera& camera = *g.cameras[frame.camera];
+                 const BoundingCylinder& cylinder, const std::optional<Ray3d>& ray, PeakState* peak,
+                 std::vector<Hypothesis>* out) {
   const Eigen::Vector2d pixel(peak->u, peak->v);
   peak->first_hypothesis = static_cast<uint32_t>(out->size());
-  const auto ray = camera.camera.RayThroughPixel(pixel);
   if (!ray) {
     peak->no_ray = true;
     return;
@@ -381,7 +411,11 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
       const auto t = IntersectRayPlane(segment, planes[k], 1.0);
       if (!t || *t >= t_max) continue;
       const Eigen::Vector3d point = segment.At(*t);
-      if (!cylinder.Contains(point)) continue;
+      // Inside the bounding cylinder, and in front of both mirrors: nothing is lit behind
+      // them (a ray reflected past the other mirror's edge would otherwise go on outside).
+      if (!cylinder.Contains(point) || g.mirrors[0].SignedDistance(point) < 0 ||
+          g.mirrors[1].SignedDistance(point) < 0)
+        continue;
       Hypothesis h;
       h.point = point;
       h.last_direction = segment.direction;
@@ -454,6 +488,55 @@ class Occupancy {
   Eigen::Vector3d origin_;
   Eigen::Vector3i size_;
   std::vector<uint8_t> cells_;
+};
+
+// Per voxel of the bounding cylinder's box, the (view, laser) keys of the peaks decided
+// without the vote near it. A mirror stripe that no rule decided can be joined to a real
+// surface in front of the mirror by a chain of its phantom hypotheses (its direct ray
+// meeting another laser's plane in the air beside an arm); the vote would carry that
+// surface's key along the whole chain, so in a mirror's region it gives the direct view
+// only to points near peaks decided so.
+class KeyOccupancy {
+ public:
+  explicit KeyOccupancy(const BoundingCylinder& c) {
+    origin_ =
+        Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
+    size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / kVoxelMm)
+                .array()
+                .ceil()
+                .cast<int>() +
+            1;
+    cells_.assign(static_cast<size_t>(size_.x()) * size_.y() * size_.z(), 0);
+  }
+  // Marks the key in the point's voxel and its 26 neighbours.
+  void Add(const Eigen::Vector3d& point, int key) {
+    const Eigen::Vector3i at = Cell(point);
+    const auto bit = static_cast<uint16_t>(1u << key);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const Eigen::Vector3i c = at + Eigen::Vector3i(dx, dy, dz);
+          if ((c.array() >= 0).all() && (c.array() < size_.array()).all()) cells_[Index(c)] |= bit;
+        }
+  }
+  bool Contains(const Eigen::Vector3d& point, int key) const {
+    const Eigen::Vector3i c = Cell(point);
+    return (c.array() >= 0).all() && (c.array() < size_.array()).all() &&
+           (cells_[Index(c)] >> key & 1u);
+  }
+
+ private:
+  static constexpr double kVoxelMm = 20.0;
+  static_assert(kKeys <= 16, "one bit per key");
+  Eigen::Vector3i Cell(const Eigen::Vector3d& point) const {
+    return ((point - origin_) / kVoxelMm).array().floor().cast<int>();
+  }
+  size_t Index(const Eigen::Vector3i& c) const {
+    return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
+  }
+  Eigen::Vector3d origin_;
+  Eigen::Vector3i size_;
+  std::vector<uint16_t> cells_;
 };
 
 // Per camera and voxel of the bounding cylinder's box: the best ray–plane angle (its sine)
@@ -685,8 +768,12 @@ void DecideByColumnCount(PeakTable* table, const std::vector<Hypothesis>& hyp, i
 
 // Majority vote per label over the peaks decided alone; the winner decides the rest.
 void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, UnionFind* labels,
-                       ReconstructSummary* summary) {
+                       const BoundingCylinder& cylinder, ReconstructSummary* summary) {
   const size_t n = table->peaks.size();
+  KeyOccupancy decided(cylinder);
+  for (const PeakState& p : table->peaks)
+    if (p.chosen >= 0)
+      decided.Add(hyp[p.first_hypothesis + p.chosen].point, hyp[p.first_hypothesis + p.chosen].key);
   std::vector<int32_t> label_of_root(n, -1);
   std::vector<std::array<uint32_t, kKeys>> votes;
   std::vector<int32_t> label(n, -1);
@@ -723,6 +810,13 @@ void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, Uni
       continue;
     }
     if (p.chosen < 0) {
+      // Only the direct view in a mirror's region is at risk: there the direct ray's other
+      // lasers' points lie in the air beside whatever stands in front of the mirror.
+      if (p.region != 0 && key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
+          !decided.Contains(hyp[p.first_hypothesis + h].point, key)) {
+        ++summary->dropped_unsupported;
+        continue;
+      }
       p.chosen = static_cast<int16_t>(h);
       p.rule = Rule::kLabelVote;
     }
@@ -845,6 +939,20 @@ const char* PointViewName(PointView view) {
   return "?";
 }
 
+const char* DecidedByName(DecidedBy rule) {
+  switch (rule) {
+    case DecidedBy::kCylinder:
+      return "cylinder";
+    case DecidedBy::kVolume:
+      return "volume";
+    case DecidedBy::kColumnCount:
+      return "column_count";
+    case DecidedBy::kLabelVote:
+      return "label_vote";
+  }
+  return "?";
+}
+
 bool BoundingCylinder::Contains(const Eigen::Vector3d& point) const {
   if (point.z() < bottom_mm || point.z() > top_mm) return false;
   return (point.head<2>() - center_mm).squaredNorm() <= radius_mm * radius_mm;
@@ -918,10 +1026,20 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   }
   PeakTable table = BuildTable(archive, use_frame);
   stopwatch.Lap("read");
+  progress("rays", 0.0);
+  // Each peak undistorted and back-projected once, for the laser fit and the hypotheses.
+  std::vector<std::optional<Ray3d>> rays(table.peaks.size());
+  for (size_t f = 0; f < archive.frames.size(); ++f) {
+    if (!use_frame[f]) continue;
+    const Camera& camera = g.cameras[archive.frames[f].camera]->camera;
+    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i)
+      rays[i] = camera.RayThroughPixel({table.peaks[i].u, table.peaks[i].v});
+  }
+  stopwatch.Lap("rays");
   progress("laser heights", 0.0);
 
   const LaserPlanes planes = FitLaserPlanes(archive, calibration, g.cameras, options, &table.peaks,
-                                            table.frame_first, &summary);
+                                            table.frame_first, rays, &summary);
   stopwatch.Lap("laser heights");
 
   // Hypotheses per peak.
@@ -941,8 +1059,8 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
         ++summary.dropped_no_ray;
         continue;
       }
-      Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder, &p,
-                  &hyp);
+      Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder,
+                  rays[i], &p, &hyp);
       if (p.no_ray) {
         ++summary.dropped_no_ray;
       } else if (p.hypotheses == 0) {
@@ -960,7 +1078,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   DecideByColumnCount(&table, hyp, planes.count);
   UnionFind labels(table.peaks.size());
   LinkNeighbours(table, hyp, options, &labels);
-  DecideByLabelVote(&table, hyp, &labels, &summary);
+  DecideByLabelVote(&table, hyp, &labels, options.cylinder, &summary);
   for (const PeakState& p : table.peaks) {
     if (p.chosen < 0) continue;
     if (p.rule == Rule::kCylinder) ++summary.decided_by_cylinder;
@@ -1123,6 +1241,10 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
     cp.frame = frame.sequence;
     cp.u = p.u;
     cp.v = p.v;
+    cp.rule = p.rule == Rule::kVolume        ? DecidedBy::kVolume
+              : p.rule == Rule::kColumnCount ? DecidedBy::kColumnCount
+              : p.rule == Rule::kLabelVote   ? DecidedBy::kLabelVote
+                                             : DecidedBy::kCylinder;
     // Peak score, how squarely the ray meets the plane, how far from the stripe's end.
     const double angle_factor = std::min(1.0, gp.sin_angle / std::sin(30.0 * kDegToRad));
     const double end_factor =
@@ -1185,6 +1307,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"outside_volume", s.dropped_outside},
             {"ambiguous", s.dropped_ambiguous},
             {"conflict", s.dropped_conflict},
+            {"unsupported", s.dropped_unsupported},
             {"flat_angle", s.dropped_flat_angle},
             {"other_camera", s.dropped_other_camera},
             {"stripe_end", s.dropped_stripe_end},
@@ -1225,10 +1348,11 @@ std::string SummaryText(const ReconstructSummary& s) {
                  s.decided_by_cylinder, s.decided_by_volume, s.decided_by_column_count,
                  s.decided_by_label_vote);
   text += Format(
-      "  dropped: panel %zu, no ray %zu, outside volume %zu, ambiguous %zu, conflict %zu, flat "
-      "angle %zu, other camera better %zu, stripe end %zu, outlier %zu\n",
+      "  dropped: panel %zu, no ray %zu, outside volume %zu, ambiguous %zu, conflict %zu, "
+      "unsupported %zu, flat angle %zu, other camera better %zu, stripe end %zu, outlier %zu\n",
       s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_ambiguous, s.dropped_conflict,
-      s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier);
+      s.dropped_unsupported, s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end,
+      s.dropped_outlier);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

@@ -48,6 +48,10 @@ enum class PointView : uint8_t {
 };
 const char* PointViewName(PointView view);
 
+// Which correspondence rule gave a point its view and laser (docs/reconstruction.md).
+enum class DecidedBy : uint8_t { kCylinder = 0, kVolume = 1, kColumnCount = 2, kLabelVote = 3 };
+const char* DecidedByName(DecidedBy rule);
+
 struct CloudPoint {
   Eigen::Vector3f point_in_world = Eigen::Vector3f::Zero();
   Eigen::Vector3f normal = Eigen::Vector3f::Zero();  // unit, towards the (mirrored) camera
@@ -58,6 +62,7 @@ struct CloudPoint {
   float u = 0;           // image column of the peak
   float v = 0;           // sub-pixel row of the peak
   float confidence = 0;  // in [0, 1]
+  DecidedBy rule = DecidedBy::kCylinder;
 };
 
 struct PointCloud {
@@ -156,11 +161,13 @@ struct ReconstructSummary {
   size_t decided_by_volume = 0;
   size_t decided_by_column_count = 0;
   size_t decided_by_label_vote = 0;
-  size_t dropped_panel = 0;         // the laser line on a panel (laser-height data)
-  size_t dropped_no_ray = 0;        // undistortion failed / ray misses everything
-  size_t dropped_outside = 0;       // no hypothesis inside the bounding cylinder
-  size_t dropped_ambiguous = 0;     // several hypotheses and nothing to decide
-  size_t dropped_conflict = 0;      // its label's vote is not among its hypotheses
+  size_t dropped_panel = 0;      // the laser line on a panel (laser-height data)
+  size_t dropped_no_ray = 0;     // undistortion failed / ray misses everything
+  size_t dropped_outside = 0;    // no hypothesis inside the bounding cylinder
+  size_t dropped_ambiguous = 0;  // several hypotheses and nothing to decide
+  size_t dropped_conflict = 0;   // its label's vote is not among its hypotheses
+  // Its label's vote lands nowhere near (~10–20 mm) a peak decided without the vote.
+  size_t dropped_unsupported = 0;
   size_t dropped_flat_angle = 0;    // ray too flat to the laser plane
   size_t dropped_other_camera = 0;  // another camera sees the place at a better angle
   size_t dropped_stripe_end = 0;
@@ -191,7 +198,8 @@ nlohmann::json SummaryJson(const ReconstructSummary& summary);
 std::string SummaryText(const ReconstructSummary& summary);
 
 // Binary little-endian PLY: x y z nx ny nz (float), camera view laser (uchar), frame
-// (uint), u v confidence (float). Throws std::runtime_error naming the file.
+// (uint), u v confidence (float), rule (uchar, DecidedBy). Throws std::runtime_error naming the
+// file.
 void WritePly(const std::filesystem::path& path, const PointCloud& cloud);
 // Reads what WritePly writes (property order as written).
 PointCloud ReadPly(const std::filesystem::path& path);

@@ -194,7 +194,13 @@ TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
   for (int v = 0; v < 3; ++v) EXPECT_GT(s.points_per_view.at(v), 1000u) << v;
   EXPECT_GE(score.matched, score.points * 0.99);
   EXPECT_LE(score.wrong, score.points * 0.0005);
-  EXPECT_GE(score.found_right, sweep.truth_reconstructable * 0.99) << sweep.truth_reconstructable;
+  // 0.99 before the vote needed support for the direct view in a mirror's region: on this
+  // stretch of frames the cuboid's stripes run on into a mirror's region further than 20–40
+  // mm from any peak decided alone, and ~5,200 right points there are dropped as
+  // unsupported (on the whole sweep, scripts/reconstruction-figures cuboid3, the recall is
+  // 77.5 % with and without it).
+  EXPECT_GE(score.found_right, sweep.truth_reconstructable * 0.94) << sweep.truth_reconstructable;
+  EXPECT_LT(s.dropped_unsupported, sweep.truth_reconstructable / 10);
   EXPECT_GT(score.box_points, score.points / 2);
   EXPECT_LT(score.rms_mm, 0.15);
   EXPECT_LT(score.max_mm, 1.0);
@@ -403,6 +409,7 @@ TEST(Reconstruct, PlyRoundTrip) {
     p.u = 3.0f * i;
     p.v = 0.25f * i;
     p.confidence = 0.1f * i;
+    p.rule = static_cast<DecidedBy>(i % 4);
     cloud.points.push_back(p);
   }
   const auto path = std::filesystem::temp_directory_path() / "reconstruct_test.ply";
@@ -415,6 +422,7 @@ TEST(Reconstruct, PlyRoundTrip) {
     EXPECT_EQ(back.points[i].frame, cloud.points[i].frame);
     EXPECT_EQ(back.points[i].v, cloud.points[i].v);
     EXPECT_EQ(back.points[i].confidence, cloud.points[i].confidence);
+    EXPECT_EQ(back.points[i].rule, cloud.points[i].rule);
   }
   std::ofstream(path) << "ply\nformat ascii 1.0\nend_header\n";
   EXPECT_THROW(ReadPly(path), std::runtime_error);
@@ -439,6 +447,38 @@ TEST(Reconstruct, BoundingCylinderFromBoard) {
     EXPECT_NE(std::string(e.what()).find("radius"), std::string::npos) << e.what();
   }
   std::filesystem::remove(path);
+}
+
+// Every shipped board carries the cabinet's cylinder; it stays in front of both mirrors and
+// reaches over the mannequin's head. It does not hold the A-pose's hands (615 mm out) nor the
+// raised arms (850 mm): a cylinder that wide decides far fewer peaks alone and the scan's
+// correspondence gets worse (docs/reconstruction.md), so those are left out.
+TEST(Reconstruct, ShippedBoardsCarryTheCabinetsCylinder) {
+  const std::string source = MIRRORSCAN_SOURCE_DIR;
+  const Scene scene = Scene::Load(source + "/boards/virtual/scenes/mannequin.json");
+  for (const char* board : {"virtual", "rpi4", "rpi5"}) {
+    const std::string path = source + "/boards/" + board + "/board.json";
+    ASSERT_TRUE(JsonReader::ParseFile(path).contains("reconstruction")) << path;
+    const BoundingCylinder c = BoundingCylinder::FromBoard(path);
+    double radius = 0, top = 0, torso = 0;
+    for (const Eigen::Vector3d& v : scene.subject.mesh.vertices) {
+      const double r = (v.head<2>() - c.center_mm).norm();
+      radius = std::max(radius, r);
+      top = std::max(top, v.z());
+      if (v.z() > 1200) torso = std::max(torso, r);  // above the hands
+    }
+    std::printf(
+        "%s: radius %.0f mm; the mannequin reaches %.1f mm out (%.1f above 1200 mm), "
+        "%.1f mm high\n",
+        board, c.radius_mm, radius, torso, top);
+    EXPECT_LT(torso + 10, c.radius_mm) << board;
+    EXPECT_LT(top, c.top_mm) << board;
+    for (const auto& mirror : scene.mirrors) {
+      EXPECT_GT(mirror.plane.SignedDistance(Eigen::Vector3d(c.center_mm.x(), c.center_mm.y(), 0)),
+                c.radius_mm)
+          << board << ": the cylinder reaches behind a mirror";
+    }
+  }
 }
 
 }  // namespace
