@@ -39,7 +39,11 @@ fs::path TempDir(const std::string& name) {
   return dir;
 }
 
-TEST(CalibrateIntrinsics, MatchesCalibrateCameraOnOpenCvSamples) {
+// The truth for real photographs: the intrinsics OpenCV ships beside its sample images
+// (left_intrinsics.yml, made by its calibration sample with a fixed aspect ratio:
+// fx = fy = 535.9, cx 342.3, cy 235.6, RMS 0.39 px). The known-lens tests below hold the
+// figures to a camera the images were made with.
+TEST(CalibrateIntrinsics, OpenCvSamplesGiveTheIntrinsicsOpenCvShipsWithThem) {
   const std::vector<fs::path> images = OpenCvSampleImages();
   ASSERT_EQ(images.size(), 13u) << "install opencv-doc (scripts/setup)";
   CalibrationPattern pattern;  // 9x6
@@ -53,47 +57,18 @@ TEST(CalibrateIntrinsics, MatchesCalibrateCameraOnOpenCvSamples) {
       });
   EXPECT_EQ(progress_calls, images.size());
 
-  // The same calibration written directly against OpenCV, as its calibration sample does.
-  std::vector<std::vector<cv::Point3f>> object_points;
-  std::vector<std::vector<cv::Point2f>> image_points;
-  cv::Size size;
-  for (const fs::path& path : images) {
-    const cv::Mat gray = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
-    size = gray.size();
-    std::vector<cv::Point2f> corners;
-    ASSERT_TRUE(cv::findChessboardCorners(gray, cv::Size(9, 6), corners));
-    cv::cornerSubPix(gray, corners, cv::Size(11, 11), cv::Size(-1, -1),
-                     cv::TermCriteria(cv::TermCriteria::EPS + cv::TermCriteria::COUNT, 30, 1e-4));
-    image_points.push_back(corners);
-    std::vector<cv::Point3f> board;
-    for (int r = 0; r < 6; ++r)
-      for (int c = 0; c < 9; ++c) board.emplace_back(c * 25.f, r * 25.f, 0.f);
-    object_points.push_back(board);
-  }
-  cv::Mat k, d;
-  std::vector<cv::Mat> rvecs, tvecs;
-  const double rms = cv::calibrateCamera(object_points, image_points, size, k, d, rvecs, tvecs);
-
   const CameraIntrinsics& got = result.intrinsics;
-  EXPECT_EQ(result.image_size, size);
-  EXPECT_NEAR(result.rms_px, rms, 1e-9);
-  EXPECT_NEAR(got.fx, k.at<double>(0, 0), 1e-6);
-  EXPECT_NEAR(got.fy, k.at<double>(1, 1), 1e-6);
-  EXPECT_NEAR(got.cx, k.at<double>(0, 2), 1e-6);
-  EXPECT_NEAR(got.cy, k.at<double>(1, 2), 1e-6);
-  const std::vector<double> distortion = {got.k1, got.k2, got.p1, got.p2, got.k3};
-  for (int i = 0; i < 5; ++i) EXPECT_NEAR(distortion[i], d.at<double>(i), 1e-9) << i;
-  // And close to the intrinsics OpenCV ships beside the images (left_intrinsics.yml, made
-  // with a fixed aspect ratio: fx = fy = 535.9, cx 342.3, cy 235.6, RMS 0.39 px).
+  EXPECT_EQ(result.image_size, cv::Size(640, 480));
   EXPECT_NEAR(got.fx, 535.9, 0.01 * 535.9);
   EXPECT_NEAR(got.fy, 535.9, 0.01 * 535.9);
   EXPECT_NEAR(got.cx, 342.3, 3.0);
   EXPECT_NEAR(got.cy, 235.6, 3.0);
+  EXPECT_NEAR(got.k1, -0.266, 0.03);
   EXPECT_LT(result.rms_px, 0.5);
   ASSERT_EQ(result.views.size(), images.size());
   for (const PatternView& v : result.views) {
     EXPECT_EQ(v.corners_px.size(), 54u);
-    EXPECT_GT(v.rms_px, 0.0);
+    EXPECT_LT(v.rms_px, 1.5);  // left02.jpg: 1.18 px in OpenCV's own run
   }
 }
 
