@@ -1,5 +1,5 @@
 // mirrorscan calibrate-intrinsics and calibrate-lasers end to end: files written, figures
-// against the library and the virtual cabinet's truth, one clear line on bad input.
+// against published and simulated truth, one clear line on bad input.
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -48,17 +48,15 @@ TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
                                  " --out " + (dir / "intrinsics.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("[13/13]"), std::string::npos) << r.out;  // progress
+  // Against the intrinsics OpenCV ships beside the images (left_intrinsics.yml: fx = fy =
+  // 535.9, cx 342.3, cy 235.6, RMS 0.39 px, fixed aspect ratio).
   const nlohmann::json json = ReadJson(dir / "intrinsics.json");
-  CalibrationPattern pattern;
-  pattern.square_mm = 25;
-  const IntrinsicsResult direct = CalibrateIntrinsics(images, pattern);
-  EXPECT_DOUBLE_EQ(json["camera_matrix"][0][0].get<double>(), direct.intrinsics.fx);
-  EXPECT_DOUBLE_EQ(json["camera_matrix"][1][1].get<double>(), direct.intrinsics.fy);
-  EXPECT_DOUBLE_EQ(json["camera_matrix"][0][2].get<double>(), direct.intrinsics.cx);
-  EXPECT_DOUBLE_EQ(json["camera_matrix"][1][2].get<double>(), direct.intrinsics.cy);
-  EXPECT_DOUBLE_EQ(json["distortion"][0].get<double>(), direct.intrinsics.k1);
-  EXPECT_DOUBLE_EQ(json["distortion"][4].get<double>(), direct.intrinsics.k3);
-  EXPECT_DOUBLE_EQ(json["rms_px"].get<double>(), direct.rms_px);
+  EXPECT_NEAR(json["camera_matrix"][0][0].get<double>(), 535.9, 0.01 * 535.9);
+  EXPECT_NEAR(json["camera_matrix"][1][1].get<double>(), 535.9, 0.01 * 535.9);
+  EXPECT_NEAR(json["camera_matrix"][0][2].get<double>(), 342.3, 3.0);
+  EXPECT_NEAR(json["camera_matrix"][1][2].get<double>(), 235.6, 3.0);
+  EXPECT_LT(json["rms_px"].get<double>(), 0.5);
+  EXPECT_EQ(json["images"].size(), 13u);
   fs::remove_all(dir);
 }
 
@@ -107,7 +105,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
       EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 2400.0 * t + 200.0 * k, 0.1);
     }
   }
-  EXPECT_GT(lasers["residual_rms_mm"].get<double>(), 0.0);
+  EXPECT_LT(lasers["residual_rms_mm"].get<double>(), 0.1);
   EXPECT_LT(lasers["residual_max_mm"].get<double>(), 0.5);
   EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
   const nlohmann::json fitted = ReadJson(dir / "fitted.json");

@@ -16,6 +16,7 @@
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "tests/support/process.h"
+#include "tests/support/scene_truth.h"
 
 namespace mirrorscan {
 namespace {
@@ -105,15 +106,26 @@ TEST_F(DeviceEndToEndTest, ScanWaitFetchAndFollowMatchTheStoredArchive) {
   EXPECT_EQ(read.header.value("origin", ""), "api");
   // Both cameras saw the laser ring in every lit frame (only a camera's first frame may
   // have begun before the lasers went on).
+  // And the peaks are the scene's stripes where the slide was (every third lit frame).
+  const virtual_cabinet::Renderer renderer(
+      virtual_cabinet::Scene::Load(kSource / "boards/virtual/scenes/mannequin.json"));
   std::map<int, int> lit, lit_with_peaks;
+  test_support::PeakMatch match;
   for (const FrameRecord& frame : read.frames) {
     if (!frame.lasers_on) continue;
-    ++lit[frame.camera];
+    if (lit[frame.camera]++ % 3 == 1)
+      match += test_support::MatchFrameToScene(renderer, frame, 700.0, 2.0);
     if (!frame.peaks.empty()) ++lit_with_peaks[frame.camera];
   }
   EXPECT_EQ(lit.size(), 2u);
   EXPECT_EQ(lit_with_peaks, lit);
   EXPECT_GE(lit[0] + lit[1], static_cast<int>(read.frames.size()) - 2);
+  std::printf(
+      "stored peaks vs the scene's truth: %zu of %zu found (RMS %.3f px), %zu of %zu false\n",
+      match.found, match.truth, match.RmsPx(), match.false_peaks, match.peaks);
+  EXPECT_GT(match.Recall(), 0.97);
+  EXPECT_LT(match.RmsPx(), 0.5);
+  EXPECT_LT(match.false_peaks, 0.02 * match.peaks);
 
   // A second scan streamed live while it runs equals the finished archive.
   const CommandResult follow = Run("device scan --follow --json --out live.mscan");

@@ -29,6 +29,7 @@
 #include "firmware/hal/replay/replay_camera.h"
 #include "firmware/store/scan_store.h"
 #include "tests/support/process.h"
+#include "tests/support/scene_truth.h"
 
 namespace mirrorscan {
 namespace {
@@ -117,6 +118,9 @@ TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
   // sequence without gaps. (How many frames a camera makes depends on how fast this
   // machine renders them: 30 fps x 2 s when idle, fewer under load.)
   EXPECT_EQ((*archive.footer)["dropped"], 0) << archive.footer->dump();
+  const virtual_cabinet::Renderer renderer(
+      virtual_cabinet::Scene::Load(kSource / "boards" / "virtual" / "scenes" / "mannequin.json"));
+  test_support::PeakMatch match;
   for (int camera = 0; camera < 2; ++camera) {
     std::vector<const FrameRecord*> frames;
     for (const FrameRecord& f : archive.frames) {
@@ -135,11 +139,21 @@ TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
       // may have begun its exposure before the lasers went on (then recorded as off).
       if (f.lasers_on) {
         EXPECT_FALSE(f.peaks.empty()) << "camera " << camera << " sequence " << f.sequence;
+        if (i % 4 == 1) match += test_support::MatchFrameToScene(renderer, f, 200.0, 2.0);
       } else {
         EXPECT_EQ(i, 0u) << "camera " << camera << " sequence " << f.sequence;
       }
     }
   }
+  // The stored peaks are the scene's stripes where the slide was.
+  std::printf(
+      "stored peaks vs the scene's truth: %zu of %zu found (RMS %.3f px), %zu of %zu false\n",
+      match.found, match.truth, match.RmsPx(), match.false_peaks, match.peaks);
+  // Measured: 99.4 % found, RMS 0.075 px, 0.4 % false. The readback the truth is taken
+  // at lags the slide by up to a poll period under load (~1 px), hence the RMS margin.
+  EXPECT_GT(match.Recall(), 0.97);
+  EXPECT_LT(match.RmsPx(), 0.5);
+  EXPECT_LT(match.false_peaks, 0.02 * match.peaks);
 }
 
 TEST_F(MirrorscandTest, Sigusr1PressesTheVirtualButton) {

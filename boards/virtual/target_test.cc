@@ -1,5 +1,6 @@
 #include "boards/virtual/target.h"
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -219,7 +220,9 @@ Render RenderPanel(const CalibrationTarget& target, int panel, double mm_per_px,
   return r;
 }
 
-void ExpectDetected(const CalibrationTarget& target, bool area, double max_corner_error_px) {
+// Returns the largest corner error found.
+double ExpectDetected(const CalibrationTarget& target, bool area, double max_corner_error_px) {
+  double worst = 0.0;
   for (int panel = 0; panel < 3; ++panel) {
     const TargetPanel& p = target.panels()[panel];
     const Render r = RenderPanel(target, panel, 2.5, area);
@@ -235,30 +238,39 @@ void ExpectDetected(const CalibrationTarget& target, bool area, double max_corne
     }
     EXPECT_EQ(found.size(), 16u);
     for (size_t i = 0; i < ids.size(); ++i) {
-      ASSERT_GE(ids[i], 16 * panel);
-      ASSERT_LT(ids[i], 16 * panel + 16);
+      EXPECT_TRUE(ids[i] >= 16 * panel && ids[i] < 16 * panel + 16) << "id " << ids[i];
+      if (ids[i] < 16 * panel || ids[i] >= 16 * panel + 16) return 1e9;
       const TargetMarker& m = target.markers()[ids[i]];
-      ASSERT_EQ(m.id, ids[i]);
+      EXPECT_EQ(m.id, ids[i]);
       for (int k = 0; k < 4; ++k) {
         const Vector2d uv = PanelUv(p, m.corners[k]);
         const double x = r.margin + uv.x() / r.mm_per_px - 0.5;
         const double y = r.margin + (p.height - uv.y()) / r.mm_per_px - 0.5;
         EXPECT_NEAR(corners[i][k].x, x, max_corner_error_px) << "id " << ids[i] << " corner " << k;
         EXPECT_NEAR(corners[i][k].y, y, max_corner_error_px) << "id " << ids[i] << " corner " << k;
+        worst = std::max({worst, std::abs(corners[i][k].x - x), std::abs(corners[i][k].y - y)});
       }
     }
   }
+  return worst;
 }
 
-TEST(TargetTest, HeadOnRenderDecodesEveryMarkerWithExactCorners) {
+// A point-sampled render: edges are hard pixel steps, so the refined corners are only
+// as good as the pixel grid allows (worst measured 0.46 px).
+TEST(TargetTest, HeadOnRenderDecodesEveryMarkerWithCornersWithinAPixel) {
+  double worst = 0.0;
   for (const TargetConfig& config : Configs())
-    ExpectDetected(CalibrationTarget(config), false, 1.0);
+    worst = std::max(worst, ExpectDetected(CalibrationTarget(config), false, 0.6));
+  std::printf("point-sampled render: worst corner error %.3f px\n", worst);
 }
 
 TEST(TargetTest, AreaRenderDecodesEveryMarkerWithSubpixelCorners) {
-  // Anti-aliased edges let the sub-pixel refinement land closer than a point-sampled render.
+  // Anti-aliased edges let the sub-pixel refinement land closer than a point-sampled render
+  // (worst measured 0.16 px).
+  double worst = 0.0;
   for (const TargetConfig& config : Configs())
-    ExpectDetected(CalibrationTarget(config), true, 0.25);
+    worst = std::max(worst, ExpectDetected(CalibrationTarget(config), true, 0.25));
+  std::printf("area render: worst corner error %.3f px\n", worst);
 }
 
 // Mean of Albedo over an n x n midpoint grid of the footprint, points off the panel skipped.

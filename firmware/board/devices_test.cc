@@ -1,7 +1,15 @@
 #include "firmware/board/devices.h"
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
 #include <filesystem>
+#include <mutex>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include <stdlib.h>
 #include <unistd.h>
@@ -11,6 +19,9 @@
 #include "firmware/hal/hardware_error.h"
 #include "firmware/hal/libcamera/libcamera_loader.h"
 #include "firmware/hal/replay/replay_camera.h"
+#if MIRRORSCAN_HAS_RENDERER
+#include "boards/virtual/renderer.h"
+#endif
 
 namespace mirrorscan::board {
 namespace {
@@ -116,22 +127,83 @@ TEST(DevicesTest, VirtualCameraNeedsTheVirtualDrive) {
 }
 
 #if MIRRORSCAN_HAS_RENDERER
-TEST(DevicesTest, VirtualCamerasRenderTheSimulatedSlide) {
-  BoardDevices d = MakeBoardDevices(BoardConfig::Load(kVirtualBoard));
+// The frame shows the lasers where the drive put the slide: moved to 450 mm (the sweep
+// starts at 0, so the scene's lasers are 450 mm past their start: t = 3 s), the stripes
+// the extractor finds in a live frame are where the renderer's truth puts them for the
+// drive's own position.
+TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
+  const BoardConfig config = BoardConfig::Load(kVirtualBoard);
+  BoardDevices d = MakeBoardDevices(config);
   ASSERT_EQ(d.cameras.size(), 2u);
   EXPECT_EQ(d.cameras[0]->config().width, 1024);
+  d.drive->Enable(true);
+  d.drive->Home(std::chrono::seconds(10));
+  d.drive->SetSpeed(500.0);
+  d.drive->Start(450.0);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (d.drive->Status().moving || std::abs(d.drive->Position() - 450.0) > 0.01) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the drive did not reach 450 mm";
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const double slide_mm = d.drive_sim->State().model.position_mm;
+  d.gpio.lasers->SetAll(true);
+  // The lasers emit only while the interlock is kicked (the sequencer's tick does it).
+  ASSERT_NE(d.gpio.interlock, nullptr);
+  std::atomic<bool> kicking{true};
+  std::thread kicker([&] {
+    while (kicking) {
+      d.gpio.interlock->Kick();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+
   std::mutex mutex;
   std::condition_variable got;
-  int frames = 0;
+  std::vector<std::vector<Peak>> frames;
   d.cameras[0]->Start([&](hal::Frame frame) {
+    std::vector<Peak> peaks = ExtractPeaks(frame.view(), config.peaks);
     std::lock_guard lock(mutex);
-    if (frame.view().width == 1024) ++frames;
+    if (frame.view().width == 1024 && frames.size() < 2) frames.push_back(std::move(peaks));
     got.notify_all();
   });
   std::unique_lock lock(mutex);
-  EXPECT_TRUE(got.wait_for(lock, std::chrono::seconds(10), [&] { return frames >= 2; }));
+  EXPECT_TRUE(got.wait_for(lock, std::chrono::seconds(20), [&] { return frames.size() >= 2; }));
   lock.unlock();
   d.cameras[0]->Stop();
+  kicking = false;
+  kicker.join();
+  d.gpio.lasers->SetAll(false);
+  ASSERT_EQ(frames.size(), 2u);
+
+  const virtual_cabinet::Renderer renderer(virtual_cabinet::Scene::Load(config.virtual_scene));
+  const double t = (slide_mm - config.scan.sweep_start_mm) / renderer.scene().lasers.speed_mm_s;
+  const auto truth = renderer.Truth(0, t);
+  ASSERT_GT(truth.size(), 300u);
+  for (const std::vector<Peak>& peaks : frames) {
+    // Each truth point found by a peak in its column within 1 px, and how far.
+    size_t found = 0, false_peaks = 0;
+    double sum2 = 0;
+    for (const auto& p : truth) {
+      double best = 1e9;
+      for (const Peak& q : peaks)
+        if (q.u == p.u) best = std::min(best, std::abs(q.v - p.v));
+      if (best > 1.0) continue;
+      ++found;
+      sum2 += best * best;
+    }
+    for (const Peak& q : peaks) {
+      bool near = false;
+      for (const auto& p : truth) near = near || (q.u == p.u && std::abs(q.v - p.v) <= 1.0);
+      false_peaks += near ? 0 : 1;
+    }
+    const double rms = std::sqrt(sum2 / std::max<size_t>(found, 1));
+    std::printf(
+        "slide %.2f mm: %zu of %zu truth points found, RMS %.4f px; %zu of %zu peaks false\n",
+        slide_mm, found, truth.size(), rms, false_peaks, peaks.size());
+    EXPECT_GT(found, 0.97 * truth.size());
+    EXPECT_LT(rms, 0.15);
+    EXPECT_LT(false_peaks, 0.02 * peaks.size());
+  }
 }
 #else
 TEST(DevicesTest, FirmwareOnlyBuildRefusesVirtualCameras) {

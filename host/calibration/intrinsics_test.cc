@@ -39,7 +39,11 @@ fs::path TempDir(const std::string& name) {
   return dir;
 }
 
-TEST(CalibrateIntrinsics, AgreesWithOpenCvsShippedIntrinsicsOnItsSamples) {
+// The truth for real photographs: the intrinsics OpenCV ships beside its sample images
+// (left_intrinsics.yml, made by its calibration sample with a fixed aspect ratio:
+// fx = fy = 535.9, cx 342.3, cy 235.6, RMS 0.39 px). The known-lens tests below hold the
+// figures to a camera the images were made with.
+TEST(CalibrateIntrinsics, OpenCvSamplesGiveTheIntrinsicsOpenCvShipsWithThem) {
   const std::vector<fs::path> images = OpenCvSampleImages();
   ASSERT_EQ(images.size(), 13u) << "install opencv-doc (scripts/setup)";
   CalibrationPattern pattern;  // 9x6
@@ -55,18 +59,17 @@ TEST(CalibrateIntrinsics, AgreesWithOpenCvsShippedIntrinsicsOnItsSamples) {
 
   const CameraIntrinsics& got = result.intrinsics;
   EXPECT_EQ(result.image_size, cv::Size(640, 480));
-  // Close to the intrinsics OpenCV ships beside the images (left_intrinsics.yml, made
-  // with a fixed aspect ratio: fx = fy = 535.9, cx 342.3, cy 235.6, RMS 0.39 px); the
-  // corners refined on the smoothed image fit better than that sample's (0.25 px here).
   EXPECT_NEAR(got.fx, 535.9, 0.01 * 535.9);
   EXPECT_NEAR(got.fy, 535.9, 0.01 * 535.9);
   EXPECT_NEAR(got.cx, 342.3, 3.0);
   EXPECT_NEAR(got.cy, 235.6, 3.0);
+  EXPECT_NEAR(got.k1, -0.266, 0.03);
+  // The corners refined on the smoothed image fit better than that sample's (0.25 px).
   EXPECT_LT(result.rms_px, 0.3);
   ASSERT_EQ(result.views.size(), images.size());
   for (const PatternView& v : result.views) {
     EXPECT_EQ(v.corners_px.size(), 54u);
-    EXPECT_GT(v.rms_px, 0.0);
+    EXPECT_LT(v.rms_px, 1.5);  // left02.jpg: 1.18 px in OpenCV's own run
   }
 }
 

@@ -1,5 +1,7 @@
 #include <cstdio>
 #include <exception>
+#include <optional>
+#include <string>
 
 #include <CLI/CLI.hpp>
 
@@ -7,13 +9,43 @@
 #include "host/cli/calibrate_intrinsics_command.h"
 #include "host/cli/calibrate_lasers_command.h"
 #include "host/cli/device_command.h"
-#include "host/cli/measure_command.h"
 #include "host/cli/exit_status.h"
+#include "host/cli/measure_command.h"
 #include "host/cli/mesh_command.h"
 #include "host/cli/peaks_command.h"
 #include "host/cli/process_command.h"
 #include "host/cli/reconstruct_command.h"
 #include "host/cli/sim_command.h"
+
+namespace {
+
+// CLI11 answers --help before it notices an unknown subcommand, so `mirrorscan nosuch
+// --help` would print the main help and succeed. Walks the leading command words and
+// names the first that is not a command of the one before it.
+std::optional<std::string> UnknownCommand(CLI::App& app, int argc, char** argv) {
+  CLI::App* current = &app;
+  std::string path = "mirrorscan";
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word.empty() || word[0] == '-') return std::nullopt;  // options: CLI11's to parse
+    CLI::App* next = nullptr;
+    // (Option groups are nameless subcommands: not commands.)
+    const auto commands =
+        current->get_subcommands([](CLI::App* a) { return !a->get_name().empty(); });
+    if (commands.empty()) return std::nullopt;  // the command's own arguments
+    for (CLI::App* command : commands) {
+      if (command->check_name(word)) next = command;
+    }
+    if (next == nullptr) {
+      return "unknown command \"" + word + "\" (see " + path + " --help)";
+    }
+    current = next;
+    path += " " + word;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"mirrorscan: host tools for the mirrorscan body scanner"};
@@ -28,6 +60,10 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddMeasureCommand(app);
   mirrorscan::cli::AddMeshCommand(app);
   mirrorscan::cli::AddProcessCommand(app);
+  if (const auto unknown = UnknownCommand(app, argc, argv)) {
+    std::fprintf(stderr, "mirrorscan: %s\n", unknown->c_str());
+    return mirrorscan::cli::kExitUsage;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
