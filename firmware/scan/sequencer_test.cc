@@ -102,6 +102,28 @@ class FaultyCamera final : public hal::Camera {
   std::atomic<uint64_t> injected_{0};
 };
 
+// A camera whose every frame costs the host `work` to make, as the virtual cabinet's
+// renderer does on a loaded machine: the stripe of StripeRow(sequence), late.
+class SlowRenderCamera final : public hal::ThreadedCamera {
+ public:
+  explicit SlowRenderCamera(milliseconds work) : work_(work) {}
+  ~SlowRenderCamera() override { Stop(); }
+
+ protected:
+  Produced Produce(uint64_t sequence, int64_t, uint8_t* pixels) override {
+    std::this_thread::sleep_for(work_);
+    for (int v = 0; v < kHeight; ++v) {
+      const double d = (v - StripeRow(sequence)) / 1.2;
+      std::fill_n(pixels + v * kWidth, kWidth,
+                  static_cast<uint8_t>(std::lround(20.0 + 180.0 * std::exp(-0.5 * d * d))));
+    }
+    return Produced::kFrame;
+  }
+
+ private:
+  const milliseconds work_;
+};
+
 bool Eventually(const std::function<bool()>& condition, milliseconds deadline = seconds(15)) {
   const auto end = std::chrono::steady_clock::now() + deadline;
   while (!condition()) {
@@ -484,7 +506,9 @@ TEST_F(SequencerTest, CameraStallTrips) {
   std::vector<uint64_t> stored[2];
   for (const FrameRecord& f : archive.frames) {
     stored[f.camera].push_back(f.sequence);
-    if (f.camera == 1) EXPECT_LT(f.timestamp_ns, stall_ns) << "sequence " << f.sequence;
+    if (f.camera == 1) {
+      EXPECT_LT(f.timestamp_ns, stall_ns) << "sequence " << f.sequence;
+    }
   }
   ASSERT_EQ(cameras_[1]->Delivered(), before_stall);  // nothing came after the stall
   ASSERT_GE(stored[1].size(), 5u);  // 30 mm of a 150 mm/s sweep at 30 fps: >= 6 frames
@@ -495,6 +519,37 @@ TEST_F(SequencerTest, CameraStallTrips) {
   EXPECT_EQ((*archive.footer)["dropped"], 0);
   // The other camera went on until the trip, ~250 ms (7 frames) longer.
   EXPECT_GE(stored[0].size(), stored[1].size() + 3);
+}
+
+// Frames that take the host longer than the stall window to make (a renderer on a busy
+// machine) are late, not a stall: the supervisor judges on the camera's own clock, which
+// stands still meanwhile. (On the steady clock this faulted "camera lower stalled".)
+TEST_F(SequencerTest, FramesLaterThanTheStallWindowAreNotAStall) {
+  auto slow = std::make_unique<SlowRenderCamera>(milliseconds(300));
+  hal::CameraConfig config = cameras_[1]->config();
+  slow->Configure(config);
+  cameras_[1] = std::make_unique<FaultyCamera>(std::move(slow));
+  ASSERT_GT(300 * kMs, options_.supervisor.camera_stall.count());
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kComplete, "complete");
+  std::vector<const FrameRecord*> lower;
+  for (const FrameRecord& f : archive.frames) {
+    if (f.camera == 1) lower.push_back(&f);
+  }
+  // A 1 s sweep at one frame made per >= 300 ms; each on its stripe row.
+  ASSERT_GE(lower.size(), 2u);
+  EXPECT_LE(lower.size(), 4u);
+  for (size_t i = 0; i < lower.size(); ++i) {
+    if (i > 0) {
+      EXPECT_EQ(lower[i]->sequence, lower[i - 1]->sequence + 1);
+      EXPECT_GT(lower[i]->timestamp_ns, lower[i - 1]->timestamp_ns + 33 * kMs);
+    }
+    ASSERT_FALSE(lower[i]->peaks.empty());
+    EXPECT_NEAR(lower[i]->peaks[0].v, StripeRow(lower[i]->sequence), 0.1);
+  }
+  EXPECT_EQ((*archive.footer)["dropped"], 0);
 }
 
 TEST_F(SequencerTest, DroppedFramesAreCountedAndTheScanCompletes) {
