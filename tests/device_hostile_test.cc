@@ -430,12 +430,12 @@ TEST_F(DeviceHostileTest, AFrozenProcessDarkensTheLasersWithinTheInterlockPulse)
 }
 
 // Busy loops on twice the cores while the rendered virtual board scans: the scan must
-// complete (no "camera stalled"). Bounded: the load ends with the scan or after 120 s.
-// DISABLED: it fails today (issue 16 item not done): on this 2-core machine at load ~17
-// plus the busy loops, the first frames took over 250 ms to render and the supervisor
-// faulted the scan with "camera upper stalled". Run it with
-// --gtest_also_run_disabled_tests once the virtual camera keeps its timing.
-TEST_F(DeviceHostileTest, DISABLED_ScansCompleteWithTheMachineLoadedToTwiceItsCores) {
+// complete. The renderer then runs late (a frame that costs 10.6 ms of CPU takes far
+// longer), which a real sensor never does; the supervisor judges a camera's silence on
+// the camera's own clock (Camera::clock_ns), which stands still while the host renders,
+// so late frames are not a stall (a real stall still trips: SequencerTest.CameraStallTrips,
+// MirrorscandTest.CameraStall...). Bounded: the load ends with the scan or after 120 s.
+TEST_F(DeviceHostileTest, ScansCompleteWithTheMachineLoadedToTwiceItsCores) {
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   std::vector<pid_t> load;
   for (unsigned i = 0; i < 2 * cores; ++i) {
@@ -454,11 +454,23 @@ TEST_F(DeviceHostileTest, DISABLED_ScansCompleteWithTheMachineLoadedToTwiceItsCo
     ::kill(pid, SIGKILL);
     ::waitpid(pid, nullptr, 0);
   }
-  EXPECT_EQ(code, 0) << daemon.Log();
   const std::string log = daemon.Log();
-  const size_t at = log.find("frames");
-  std::printf("loaded to %u busy loops on %u cores: exit %d; %s\n", 2 * cores, cores, code,
-              at == std::string::npos ? "" : log.substr(log.rfind('\n', at) + 1, 160).c_str());
+  ASSERT_EQ(code, 0) << log;
+  // The footer as the sequencer logs it: "sequencer: scan <id> complete: {...}".
+  const std::string marker = " complete: ";
+  const size_t at = log.find(marker);
+  ASSERT_NE(at, std::string::npos) << log;
+  const json footer =
+      json::parse(log.substr(at + marker.size(), log.find('\n', at) - at - marker.size()));
+  EXPECT_EQ(footer["status"], "complete");
+  EXPECT_EQ(footer["queue_dropped"], json::array({0, 0})) << footer.dump();
+  // 2 s of sweep: 60 frames per camera at 30 fps on an idle machine, fewer when the
+  // renderer cannot keep up (it starts the next frame late rather than dropping).
+  for (int camera = 0; camera < 2; ++camera) {
+    EXPECT_GE(footer["frames"][camera].get<int>(), 10) << footer.dump();
+  }
+  std::printf("loaded to %u busy loops on %u cores: exit %d; footer %s\n", 2 * cores, cores, code,
+              footer.dump().c_str());
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // mirrorscand as a process: a virtual scan from the start hook and from a (SIGUSR1)
-// button press, SIGTERM and SIGKILL mid-sweep, and a full disk (RLIMIT_FSIZE). The
-// crash tests use replay cameras (fast start-up); the scans use the rendered cabinet.
+// button press, SIGTERM and SIGKILL mid-sweep, a full disk (RLIMIT_FSIZE), and a drive
+// fault and a camera stall injected on the virtual board (SIGUSR2). The crash tests use
+// replay cameras (fast start-up); the scans use the rendered cabinet. "Lasers off" is
+// read on the virtual laser lines (--line-state), as a probe on the pins would see it.
 
 #include <fcntl.h>
 #include <signal.h>
@@ -26,7 +28,10 @@
 #include <nlohmann/json.hpp>
 
 #include "common/scan_format/scan_format.h"
+#include "firmware/hal/clock.h"
+#include "firmware/hal/hardware_error.h"
 #include "firmware/hal/replay/replay_camera.h"
+#include "firmware/hal/virtual/virtual_line_states.h"
 #include "firmware/store/scan_store.h"
 #include "tests/support/process.h"
 #include "tests/support/scene_truth.h"
@@ -55,6 +60,7 @@ class MirrorscandTest : public ::testing::Test {
     ASSERT_NE(mkdtemp(pattern), nullptr);
     dir_ = pattern;
     data_ = dir_ / "data";
+    lines_ = dir_ / "lines";
   }
   void TearDown() override { fs::remove_all(dir_); }
 
@@ -97,16 +103,108 @@ class MirrorscandTest : public ::testing::Test {
   std::vector<store::ScanInfo> Scans() {
     return store::ScanStore::Open(data_)->List();  // Open also recovers what a crash left
   }
+  // `args` with the virtual lines mirrored to lines_.
+  std::vector<std::string> WithLines(std::vector<std::string> args) const {
+    args.insert(args.end(), {"--line-state", lines_.string()});
+    return args;
+  }
+  // The daemon's laser lines as the line state file shows them (none before it exists).
+  std::vector<hal::VirtualLineStates::Observed> Lasers() const {
+    std::vector<hal::VirtualLineStates::Observed> lasers;
+    try {
+      for (auto& line : hal::VirtualLineStates::Read(lines_)) {
+        if (line.name.rfind("laser[", 0) == 0) lasers.push_back(std::move(line));
+      }
+    } catch (const hal::HardwareError&) {
+    }
+    return lasers;
+  }
+  // Whether all three laser lines (active high on the virtual board) show `high` before
+  // `deadline` (false as soon as the daemon exits).
+  bool WaitLasers(bool high, test_support::ChildProcess& daemon,
+                  milliseconds deadline = seconds(60)) {
+    const auto end = std::chrono::steady_clock::now() + deadline;
+    while (std::chrono::steady_clock::now() < end) {
+      const auto lasers = Lasers();
+      if (lasers.size() == 3 && std::all_of(lasers.begin(), lasers.end(),
+                                            [&](const auto& l) { return l.high == high; })) {
+        return true;
+      }
+      if (daemon.Exited()) return false;
+      std::this_thread::sleep_for(std::chrono::microseconds(500));
+    }
+    return false;
+  }
+  // Every laser line is low and went on and off exactly once; returns when the last went
+  // off (steady ns, the same clock in every process).
+  int64_t ExpectLasersWentOnAndOffOnce() {
+    const auto lasers = Lasers();
+    EXPECT_EQ(lasers.size(), 3u);
+    int64_t off_ns = 0;
+    for (const auto& laser : lasers) {
+      EXPECT_FALSE(laser.high) << laser.name;
+      EXPECT_EQ(laser.changes, 2u) << laser.name;
+      off_ns = std::max(off_ns, laser.last_change_ns);
+    }
+    return off_ns;
+  }
 
-  fs::path dir_, data_;
+  // A scan on replay cameras with `fault` injected by SIGUSR2 0.3 s after the laser lines
+  // went on, after an earlier complete scan. Checks the lines, the exit, and that the
+  // earlier scan is byte for byte intact; returns the faulted scan's record and how long
+  // after the injection the last laser line went low.
+  std::pair<store::ScanInfo, int64_t> ScanWithInjectedFault(const std::string& fault) {
+    const fs::path board = WriteBoard(true);
+    std::vector<std::string> args = Args(board);
+    args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
+    {
+      Daemon first(args, dir_ / "log1");
+      EXPECT_EQ(first.Wait(), 0) << first.Log();
+    }
+    const std::vector<store::ScanInfo> before = Scans();
+    EXPECT_EQ(before.size(), 1u);
+    if (before.size() != 1) return {};
+    const std::string earlier_bytes = test_support::ReadFile(data_ / (before[0].id + ".mscan"));
+
+    args = WithLines(args);
+    args.insert(args.end(), {"--fault-on-sigusr2", fault});
+    Daemon daemon(args, dir_ / "log2");
+    EXPECT_TRUE(WaitLasers(true, daemon)) << daemon.Log();
+    std::this_thread::sleep_for(milliseconds(300));  // 45 mm into the sweep
+    const int64_t injected_ns = hal::SteadyNowNs();
+    daemon.Signal(SIGUSR2);
+    EXPECT_TRUE(WaitLasers(false, daemon, seconds(5))) << daemon.Log();
+    const int64_t off_ns = ExpectLasersWentOnAndOffOnce() - injected_ns;
+    EXPECT_EQ(daemon.Wait(), 1) << daemon.Log();  // the scan ended in a fault
+
+    const std::vector<store::ScanInfo> after = Scans();
+    EXPECT_EQ(after.size(), 2u);
+    if (after.size() != 2) return {};
+    EXPECT_EQ(after[1].id, before[0].id);
+    EXPECT_EQ(after[1].state, store::ScanState::kComplete);
+    EXPECT_EQ(after[1].frames, before[0].frames);
+    EXPECT_EQ(test_support::ReadFile(data_ / (before[0].id + ".mscan")), earlier_bytes);
+    EXPECT_EQ(after[0].state, store::ScanState::kFault) << after[0].reason;
+    const ScanArchive archive = ReadScanFile(data_ / (after[0].id + ".mscan"));
+    EXPECT_TRUE(archive.report.complete) << archive.report.message;
+    EXPECT_GT(archive.frames.size(), 10u);
+    if (archive.footer) {
+      EXPECT_EQ((*archive.footer)["status"], "fault");
+    } else {
+      ADD_FAILURE() << "no footer";
+    }
+    return {after[0], off_ns};
+  }
+
+  fs::path dir_, data_, lines_;
 };
 
 TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
-  std::vector<std::string> args = Args(WriteBoard(false));
+  std::vector<std::string> args = WithLines(Args(WriteBoard(false)));
   args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
   Daemon daemon(args, dir_ / "log");
   ASSERT_EQ(daemon.Wait(seconds(90)), 0) << daemon.Log();
-  EXPECT_NE(daemon.Log().find("lasers off"), std::string::npos);
+  ExpectLasersWentOnAndOffOnce();
   const std::vector<store::ScanInfo> scans = Scans();
   ASSERT_EQ(scans.size(), 1u);
   EXPECT_EQ(scans[0].state, store::ScanState::kComplete);
@@ -170,14 +268,17 @@ TEST_F(MirrorscandTest, Sigusr1PressesTheVirtualButton) {
 }
 
 TEST_F(MirrorscandTest, SigtermMidSweepAbortsTheScan) {
-  std::vector<std::string> args = Args(WriteBoard(true));
+  std::vector<std::string> args = WithLines(Args(WriteBoard(true)));
   args.push_back("--scan-on-start");
   Daemon daemon(args, dir_ / "log");
-  ASSERT_TRUE(daemon.WaitLog("sweeping")) << daemon.Log();
+  ASSERT_TRUE(WaitLasers(true, daemon)) << daemon.Log();
   std::this_thread::sleep_for(milliseconds(300));
+  const int64_t signalled_ns = hal::SteadyNowNs();
   daemon.Signal(SIGTERM);
   ASSERT_EQ(daemon.Wait(), 0) << daemon.Log();
-  EXPECT_NE(daemon.Log().find("lasers off"), std::string::npos);
+  const int64_t off_ns = ExpectLasersWentOnAndOffOnce() - signalled_ns;
+  std::printf("SIGTERM -> laser lines low: %.1f ms\n", off_ns * 1e-6);
+  EXPECT_LE(off_ns, 50'000'000);
   const std::vector<store::ScanInfo> scans = Scans();
   ASSERT_EQ(scans.size(), 1u);
   EXPECT_EQ(scans[0].state, store::ScanState::kAborted);
@@ -234,11 +335,11 @@ TEST_F(MirrorscandTest, DiskFullIsACleanFault) {
   }
   const std::vector<store::ScanInfo> before = Scans();
   ASSERT_EQ(before.size(), 1u);
-  Daemon full(args, dir_ / "log2", 64 * 1024);
+  Daemon full(WithLines(args), dir_ / "log2", 64 * 1024);
   ASSERT_EQ(full.Wait(), 1) << full.Log();  // the scan ended in a fault
   const std::string log = full.Log();
   EXPECT_NE(log.find("scan store"), std::string::npos) << log;
-  EXPECT_NE(log.find("lasers off"), std::string::npos) << log;
+  ExpectLasersWentOnAndOffOnce();
   const std::vector<store::ScanInfo> after = Scans();
   ASSERT_EQ(after.size(), 2u);
   EXPECT_EQ(after[1].id, before[0].id);
@@ -246,6 +347,24 @@ TEST_F(MirrorscandTest, DiskFullIsACleanFault) {
   EXPECT_EQ(after[1].frames, before[0].frames);
   EXPECT_EQ(after[0].state, store::ScanState::kPartial);
   EXPECT_GT(ReadScanFile(data_ / (after[0].id + ".mscan.partial")).frames.size(), 0u);
+}
+
+TEST_F(MirrorscandTest, DriveFaultMidSweepDarkensTheLaserLinesAndKeepsEarlierScans) {
+  const auto [scan, off_ns] = ScanWithInjectedFault("drive-fault");
+  std::printf("drive fault -> laser lines low: %.1f ms\n", off_ns * 1e-6);
+  EXPECT_GT(off_ns, 0);
+  EXPECT_LE(off_ns, 50'000'000);
+  EXPECT_EQ(scan.reason, "drive fault 66");
+}
+
+TEST_F(MirrorscandTest, CameraStallMidSweepDarkensTheLaserLinesAndKeepsEarlierScans) {
+  const auto [scan, off_ns] = ScanWithInjectedFault("camera-stall:lower");
+  std::printf("camera stall -> laser lines low: %.1f ms\n", off_ns * 1e-6);
+  // Known only after scan.camera_stall_ms (250) since the camera's last frame, which came
+  // at most a frame period (33 ms) before the stall.
+  EXPECT_GE(off_ns, 250'000'000 - 34'000'000);
+  EXPECT_LE(off_ns, 250'000'000 + 50'000'000);
+  EXPECT_NE(scan.reason.find("camera lower stalled"), std::string::npos) << scan.reason;
 }
 
 TEST_F(MirrorscandTest, NotifiesSystemdReadyWatchdogAndStopping) {

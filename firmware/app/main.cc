@@ -17,6 +17,7 @@
 #include <cstring>
 #include <exception>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <thread>
@@ -51,13 +52,20 @@ constexpr const char* kUsageText = R"(usage: mirrorscand --board BOARD.json --da
   --interlock-state FILE
                       virtual boards only: mirror the laser interlock's state (the
                       monostable's last trigger) into FILE for outside observers
+  --line-state FILE   virtual boards only: mirror the output lines' levels (lasers,
+                      LED) into FILE for outside observers (docs/firmware.md)
+  --fault-on-sigusr2 FAULT
+                      virtual boards only: SIGUSR2 injects FAULT, one of drive-fault
+                      (the simulated drive latches fault code 0x42) and
+                      camera-stall:NAME (that camera stops delivering frames)
   --scan-on-start     start one scan as soon as the daemon is ready (origin "test")
   --exit-after-scan   exit once a scan has ended (0 complete, 1 fault or aborted)
   --log-level LEVEL   trace, debug, info (default), warn, error
   --version, --help
 
 Signals: SIGTERM/SIGINT abort a running scan (lasers off at once) and stop the daemon;
-SIGUSR1 presses the virtual button (boards with gpio.backend "virtual").
+SIGUSR1 presses the virtual button (boards with gpio.backend "virtual"); SIGUSR2
+injects the --fault-on-sigusr2 fault.
 )";
 
 struct Args {
@@ -66,6 +74,8 @@ struct Args {
   std::string listen;
   std::filesystem::path scene;
   std::optional<std::filesystem::path> interlock_state;
+  std::optional<std::filesystem::path> line_state;
+  std::string sigusr2_fault;
   bool scan_on_start = false;
   bool exit_after_scan = false;
   std::string log_level = "info";
@@ -97,6 +107,15 @@ std::optional<Args> ParseArgs(int argc, char** argv) {
       args.scene = value();
     } else if (flag == "--interlock-state") {
       args.interlock_state = value();
+    } else if (flag == "--line-state") {
+      args.line_state = value();
+    } else if (flag == "--fault-on-sigusr2") {
+      args.sigusr2_fault = value();
+      if (args.sigusr2_fault != "drive-fault" &&
+          args.sigusr2_fault.rfind("camera-stall:", 0) != 0) {
+        throw std::invalid_argument("--fault-on-sigusr2: drive-fault or camera-stall:NAME, not " +
+                                    args.sigusr2_fault);
+      }
     } else if (flag == "--scan-on-start") {
       args.scan_on_start = true;
     } else if (flag == "--exit-after-scan") {
@@ -179,6 +198,33 @@ void PressVirtualButton(board::BoardDevices& devices, int debounce_ms) {
   devices.virtual_button->InjectEdge(hal::SteadyNowNs(), low);
 }
 
+// A fault on the virtual board's simulated hardware, for the fault tests of the process
+// (--fault-on-sigusr2). Empty when the fault cannot be injected on this board: then the
+// problem is in `problem`.
+std::function<void()> VirtualFault(const std::string& fault, const board::BoardConfig& config,
+                                   board::BoardDevices& devices, std::string& problem) {
+  if (fault == "drive-fault") {
+    virtual_cabinet::DriveSim* sim = devices.drive_sim.get();
+    if (sim == nullptr) {
+      problem = "drive-fault needs drive.backend \"virtual\"";
+      return {};
+    }
+    return [sim] { sim->InjectFault(0x42); };
+  }
+  const std::string name = fault.substr(fault.find(':') + 1);
+  for (size_t i = 0; i < config.cameras.size(); ++i) {
+    if (config.cameras[i].name != name) continue;
+    auto* camera = dynamic_cast<hal::ThreadedCamera*>(devices.cameras[i].get());
+    if (camera == nullptr) {
+      problem = "camera " + name + " is not simulated (replay or virtual)";
+      return {};
+    }
+    return [camera] { camera->SetStalled(true); };
+  }
+  problem = "no camera named " + name;
+  return {};
+}
+
 bool Ended(scan::SequencerState state) {
   return state == scan::SequencerState::kDone || state == scan::SequencerState::kFault ||
          state == scan::SequencerState::kAborted;
@@ -209,10 +255,24 @@ int Run(const Args& args, const sigset_t& signals) {
     board::DeviceOptions device_options;
     device_options.scene = args.scene;
     device_options.interlock_state_file = args.interlock_state;
+    device_options.line_state_file = args.line_state;
     devices = board::MakeBoardDevices(config, device_options);
   } catch (const std::exception& e) {
     spdlog::error("{}: {}", args.board.string(), e.what());
     return kHardware;
+  }
+  if (args.line_state && config.gpio.backend != hal::GpioBackend::kVirtual) {
+    spdlog::error("--line-state is for boards with gpio.backend \"virtual\"");
+    return kUsage;
+  }
+  std::function<void()> inject_fault;
+  if (!args.sigusr2_fault.empty()) {
+    std::string problem;
+    inject_fault = VirtualFault(args.sigusr2_fault, config, devices, problem);
+    if (!inject_fault) {
+      spdlog::error("--fault-on-sigusr2 {}: {}", args.sigusr2_fault, problem);
+      return kUsage;
+    }
   }
   g_lasers = devices.gpio.lasers.get();
   struct ForgetLasers {  // before the devices go, whichever way Run returns
@@ -314,6 +374,14 @@ int Run(const Args& args, const sigset_t& signals) {
       PressVirtualButton(devices, config.gpio.debounce_ms);
       scan_started = true;
     }
+    if (signal == SIGUSR2) {
+      if (inject_fault) {
+        spdlog::warn("SIGUSR2: injecting {}", args.sigusr2_fault);
+        inject_fault();
+      } else {
+        spdlog::warn("SIGUSR2: no --fault-on-sigusr2; ignored");
+      }
+    }
     const scan::ScanStatus status = sequencer->Status();
     if (args.exit_after_scan && scan_started && !status.scan_id.empty() && Ended(status.state)) {
       exit_code = status.state == scan::SequencerState::kDone ? kOk : kScanFailed;
@@ -341,6 +409,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGUSR1);
+  sigaddset(&signals, SIGUSR2);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::set_terminate(TerminateSafely);
 

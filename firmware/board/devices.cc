@@ -81,8 +81,8 @@ BoardDevices MakeBoardDevices(const BoardConfig& config, const DeviceOptions& op
   BoardDevices devices;
   devices.drive = MakeDrive(config, devices);
 
-  hal::GpioLines lines =
-      hal::MakeGpioLines(config.gpio, config.gpio.backend, options.interlock_state_file);
+  hal::GpioLines lines = hal::MakeGpioLines(config.gpio, config.gpio.backend,
+                                            options.interlock_state_file, options.line_state_file);
   if (config.gpio.backend == hal::GpioBackend::kVirtual) {
     devices.virtual_interlock = dynamic_cast<hal::VirtualMonostable*>(lines.interlock.line.get());
     for (auto& laser : lines.lasers) {

@@ -41,6 +41,8 @@ struct DeviceOptions {
   std::filesystem::path scene;
   // Virtual boards: mirror the laser interlock's state here (VirtualMonostable).
   std::optional<std::filesystem::path> interlock_state_file;
+  // Virtual boards: mirror the output lines' levels here (VirtualLineStates).
+  std::optional<std::filesystem::path> line_state_file;
 };
 
 // Every device of a board, built from its BoardConfig. Members are destroyed cameras

@@ -147,7 +147,40 @@ void ThreadedCamera::Start(FrameCallback on_frame, EndCallback on_end) {
   on_end_ = std::move(on_end);
   dropped_ = 0;
   stop_ = false;
+  {
+    std::lock_guard lock(clock_mutex_);
+    clock_base_ns_ = clock_since_ns_ = clock_until_ns_ = clock_frozen_ns_ = SteadyNowNs();
+  }
   thread_ = std::thread([this] { Run(); });
+}
+
+int64_t ThreadedCamera::clock_ns() const {
+  const int64_t now_ns = SteadyNowNs();
+  std::lock_guard lock(clock_mutex_);
+  return clock_base_ns_ + std::max<int64_t>(0, std::min(now_ns, clock_until_ns_) - clock_since_ns_);
+}
+
+void ThreadedCamera::ClockRunUntil(int64_t until_ns) {
+  const int64_t now_ns = SteadyNowNs();
+  std::lock_guard lock(clock_mutex_);
+  clock_since_ns_ = now_ns;
+  clock_until_ns_ = until_ns;
+}
+
+void ThreadedCamera::ClockStop() {
+  const int64_t now_ns = SteadyNowNs();
+  std::lock_guard lock(clock_mutex_);
+  const int64_t frozen_ns = std::max(clock_since_ns_, std::min(now_ns, clock_until_ns_));
+  clock_base_ns_ += frozen_ns - clock_since_ns_;
+  clock_since_ns_ = clock_until_ns_ = now_ns;
+  clock_frozen_ns_ = frozen_ns;
+}
+
+void ThreadedCamera::ClockCatchUp() {
+  const int64_t now_ns = SteadyNowNs();
+  std::lock_guard lock(clock_mutex_);
+  clock_base_ns_ += std::max<int64_t>(0, now_ns - clock_frozen_ns_);
+  clock_since_ns_ = clock_until_ns_ = clock_frozen_ns_ = now_ns;
 }
 
 void ThreadedCamera::Stop() {
@@ -177,14 +210,27 @@ void ThreadedCamera::Run() {
   try {
     while (!stop_.load()) {
       if (paced) {
+        ClockRunUntil(
+            std::chrono::duration_cast<std::chrono::nanoseconds>(next.time_since_epoch()).count());
         std::unique_lock lock(wake_mutex_);
-        if (wake_.wait_until(lock, next, [&] { return stop_.load(); })) break;
+        const bool stopping = wake_.wait_until(lock, next, [&] { return stop_.load(); });
+        lock.unlock();
+        ClockStop();
+        if (stopping) break;
       }
       // The sensor keeps its rhythm; a late frame starts the next period from now. Unpaced
       // (fps 0), a frame is exposed once a buffer is free.
       auto exposed = next;
       if (paced) next = std::max(next + period, Clock::now());
 
+      if (stalled_.load()) {
+        ClockCatchUp();  // no frame is in the making: the thread's lateness is the sensor's time
+        if (!paced) {    // nothing paces an unpaced camera's stall: do not spin
+          std::unique_lock lock(wake_mutex_);
+          wake_.wait_for(lock, std::chrono::milliseconds(1), [&] { return stop_.load(); });
+        }
+        continue;
+      }
       const Produced plan = Plan(sequence);
       if (plan == Produced::kSkip) continue;
       if (plan == Produced::kDrop) {
@@ -197,7 +243,15 @@ void ThreadedCamera::Run() {
         return;
       }
 
-      const std::optional<int> buffer = paced ? pool_->Acquire() : pool_->AcquireWait(stop_);
+      std::optional<int> buffer;
+      if (paced) {
+        buffer = pool_->Acquire();
+      } else {
+        // Unpaced, the sensor waits for the consumer: its time runs meanwhile.
+        ClockRunUntil(INT64_MAX);
+        buffer = pool_->AcquireWait(stop_);
+        ClockStop();
+      }
       if (!buffer) {
         if (stop_.load()) break;
         ++dropped_;  // every buffer is with the consumer: the sensor's frame is lost

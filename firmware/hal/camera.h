@@ -110,6 +110,11 @@ class Camera {
   // Frames lost since Start() because no buffer was free (or injected by a simulation).
   virtual uint64_t dropped() const = 0;
   virtual const CameraConfig& config() const = 0;
+  // The camera's own time, steady nanoseconds: how far its sensor has got. What a stall
+  // watchdog measures a camera's silence in. A real sensor runs in real time, whatever
+  // the host is doing, so the default is the steady clock; a camera whose frames cost
+  // host time to make (ThreadedCamera) overrides it. Any thread.
+  virtual int64_t clock_ns() const { return SteadyNowNs(); }
 };
 
 // The buffer pool behind Frame; shared by the camera and its outstanding frames.
@@ -152,6 +157,19 @@ class ThreadedCamera : public Camera {
   bool streaming() const final { return thread_.joinable(); }
   uint64_t dropped() const final { return dropped_.load(); }
   const CameraConfig& config() const final { return config_; }
+  // The simulated sensor's time: it runs while the camera thread waits for its next
+  // exposure, up to that exposure's scheduled time, and stands still from then until the
+  // thread waits again, i.e. while the host is late to run the thread or busy making the
+  // frame (a renderer, a file read: work a real sensor does not take from the host). On a
+  // busy host the frames come later and the clock falls behind the steady clock by as
+  // much; while stalled (SetStalled) no frame is in the making and the clock keeps up
+  // with the steady clock. Any thread.
+  int64_t clock_ns() const final;
+
+  // Fault injection for these simulated cameras (any thread, any time): while stalled the
+  // camera delivers nothing, takes no sequence number and counts no drop (a hung sensor:
+  // only a watchdog notices), and its clock runs. false resumes.
+  void SetStalled(bool stalled) { stalled_ = stalled; }
 
  protected:
   enum class Produced {
@@ -192,6 +210,17 @@ class ThreadedCamera : public Camera {
   std::mutex wake_mutex_;
   std::condition_variable wake_;
   std::atomic<uint64_t> dropped_{0};
+  std::atomic<bool> stalled_{false};
+
+  // clock_ns(): camera time = base + (min(now, runs_until) - since), never below base.
+  void ClockRunUntil(int64_t until_ns);  // the thread starts waiting for `until_ns`
+  void ClockStop();                      // the thread is working
+  void ClockCatchUp();                   // ... on no frame: the time since the stop counts
+  mutable std::mutex clock_mutex_;
+  int64_t clock_base_ns_ = 0;    // the camera's time at clock_since_ns_
+  int64_t clock_since_ns_ = 0;   // steady time the current run began
+  int64_t clock_until_ns_ = 0;   // steady time the current run ends (== since: stopped)
+  int64_t clock_frozen_ns_ = 0;  // steady time the clock last stood still from
 };
 
 }  // namespace mirrorscan::hal

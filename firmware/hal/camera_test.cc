@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <string>
+#include <thread>
 
 #include <gtest/gtest.h>
 
@@ -26,6 +27,22 @@ class CountingCamera final : public ThreadedCamera {
     ++produced;
     return Produced::kFrame;
   }
+};
+
+// Takes `work` of host time per frame, as the virtual cabinet's renderer does.
+class BusyCamera final : public ThreadedCamera {
+ public:
+  explicit BusyCamera(milliseconds work) : work_(work) {}
+  ~BusyCamera() override { Stop(); }
+
+ protected:
+  Produced Produce(uint64_t, int64_t, uint8_t*) override {
+    std::this_thread::sleep_for(work_);
+    return Produced::kFrame;
+  }
+
+ private:
+  const milliseconds work_;
 };
 
 CameraConfig SmallConfig(double fps) {
@@ -131,6 +148,41 @@ TEST(ThreadedCamera, StopIsPromptWhileWaitingForAPeriodOrABuffer) {
     EXPECT_LT(std::chrono::steady_clock::now() - t0, milliseconds(500)) << "fps " << fps;
     EXPECT_EQ(cam.dropped(), 0u);
   }
+}
+
+// A stall watchdog reads Camera::clock_ns(): a frame that takes the host 150 ms to make
+// is late, not a stalled sensor, so the camera's clock stands still meanwhile; a sensor
+// that makes no frames lets it run with the steady clock.
+TEST(ThreadedCamera, ItsClockStandsStillWhileTheHostMakesAFrameAndRunsWhileItMakesNone) {
+  BusyCamera cam(milliseconds(150));
+  cam.Configure(SmallConfig(50));  // a 20 ms period: every frame is late
+  FrameQueue q;
+  cam.Start(q.OnFrame());
+  ASSERT_TRUE(q.Pop().valid());
+  const int64_t clock0 = cam.clock_ns(), steady0 = SteadyNowNs();
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(q.Pop().valid());
+  const int64_t clock1 = cam.clock_ns(), steady1 = SteadyNowNs();
+  std::printf("3 frames of 150 ms work: steady %.1f ms, camera clock %.1f ms\n",
+              (steady1 - steady0) * 1e-6, (clock1 - clock0) * 1e-6);
+  EXPECT_GE(steady1 - steady0, 300'000'000);
+  // It waits for no period (each is over when a frame is done): the clock may only run
+  // up to a scheduled exposure, at most one period per frame.
+  EXPECT_LE(clock1 - clock0, 3 * 20'000'000);
+
+  cam.SetStalled(true);                            // a hung sensor
+  std::this_thread::sleep_for(milliseconds(200));  // a frame in the making is done by now
+  while (q.Pop(milliseconds(0)).valid()) {
+  }
+  const int64_t clock2 = cam.clock_ns(), steady2 = SteadyNowNs();
+  std::this_thread::sleep_for(milliseconds(300));
+  const int64_t clock3 = cam.clock_ns(), steady3 = SteadyNowNs();
+  std::printf("stalled: steady %.1f ms, camera clock %.1f ms\n", (steady3 - steady2) * 1e-6,
+              (clock3 - clock2) * 1e-6);
+  // It keeps up with the steady clock, short at most by how late its thread wakes for the
+  // period at hand (it catches up on every wake-up that makes no frame).
+  EXPECT_LE(clock3 - clock2, steady3 - steady2 + 20'000'000);
+  EXPECT_GE(clock3 - clock2, steady3 - steady2 - 40'000'000);
+  cam.Stop();
 }
 
 }  // namespace

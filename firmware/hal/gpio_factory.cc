@@ -30,7 +30,8 @@ std::unique_ptr<GpioLine> MakeLine(const GpioConfig& config, GpioBackend backend
 }  // namespace
 
 GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend,
-                        const std::optional<std::filesystem::path>& interlock_state_file) {
+                        const std::optional<std::filesystem::path>& interlock_state_file,
+                        const std::optional<std::filesystem::path>& line_state_file) {
   GpioLines lines;
   for (size_t i = 0; i < config.lasers.size(); ++i) {
     lines.lasers.push_back(
@@ -40,6 +41,13 @@ GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend,
   lines.led = {MakeLine(config, backend, config.led, true, "led"), config.led.active_low};
   lines.button = {MakeLine(config, backend, config.button, false, "button"),
                   config.button.active_low};
+  if (backend == GpioBackend::kVirtual && line_state_file) {
+    auto states = std::make_shared<VirtualLineStates>(*line_state_file);
+    for (auto& laser : lines.lasers) {
+      static_cast<VirtualGpioLine&>(*laser.line).MirrorTo(states);
+    }
+    static_cast<VirtualGpioLine&>(*lines.led.line).MirrorTo(states);
+  }
   if (backend == GpioBackend::kVirtual) {
     lines.interlock = {
         std::make_unique<VirtualMonostable>(std::chrono::milliseconds(config.interlock_pulse_ms),

@@ -23,9 +23,11 @@ struct GpioLines {
 // naming chip and line: never a silent fallback to kVirtual. With kVirtual the lines are
 // VirtualGpioLine (firmware/hal/virtual), named "laser[i]", "led", "button"; the button
 // idles released; the interlock is always there, a VirtualMonostable of the configured
-// pulse (mirrored to `interlock_state_file` when given).
+// pulse (mirrored to `interlock_state_file` when given), and with `line_state_file` the
+// output lines (lasers, LED) mirror their levels into it (VirtualLineStates).
 GpioLines MakeGpioLines(const GpioConfig& config, GpioBackend backend,
-                        const std::optional<std::filesystem::path>& interlock_state_file = {});
+                        const std::optional<std::filesystem::path>& interlock_state_file = {},
+                        const std::optional<std::filesystem::path>& line_state_file = {});
 
 // The devices built on those lines.
 struct GpioDevices {

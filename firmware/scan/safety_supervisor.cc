@@ -28,11 +28,17 @@ SafetySupervisor::~SafetySupervisor() {
   lasers_.SafeOff();
 }
 
-void SafetySupervisor::Arm(const std::vector<std::string>& cameras, bool watch_drive) {
+void SafetySupervisor::Arm(const std::vector<WatchedCamera>& cameras, bool watch_drive) {
   std::lock_guard lock(mutex_);
   const int64_t now_ns = hal::SteadyNowNs();
-  camera_names_.assign(cameras.begin(), cameras.begin() + std::min(cameras.size(), kMaxCameras));
-  for (auto& last : last_frame_ns_) last.store(now_ns);
+  camera_names_.clear();
+  for (size_t i = 0; i < kMaxCameras; ++i) {
+    const hal::Camera* camera = i < cameras.size() ? cameras[i].camera : nullptr;
+    if (i < cameras.size()) camera_names_.push_back(cameras[i].name);
+    cameras_[i].store(camera);
+    last_frame_clock_ns_[i].store(camera != nullptr ? camera->clock_ns() : now_ns);
+    last_frame_ns_[i].store(now_ns);
+  }
   watch_drive_ = watch_drive;
   armed_ns_ = now_ns;
   armed_ = true;
@@ -44,10 +50,12 @@ void SafetySupervisor::Disarm() {
   tripped_ = false;
 }
 
-void SafetySupervisor::CameraFrame(int camera, int64_t now_ns) {
-  if (camera >= 0 && camera < static_cast<int>(kMaxCameras)) {
-    last_frame_ns_[camera].store(now_ns, std::memory_order_relaxed);
-  }
+void SafetySupervisor::CameraFrame(int camera) {
+  if (camera < 0 || camera >= static_cast<int>(kMaxCameras)) return;
+  const hal::Camera* watched = cameras_[camera].load();
+  const int64_t now_ns = hal::SteadyNowNs();
+  last_frame_clock_ns_[camera].store(watched != nullptr ? watched->clock_ns() : now_ns);
+  last_frame_ns_[camera].store(now_ns);
 }
 
 void SafetySupervisor::RequestTrip(bool fault, const std::string& reason) noexcept {
@@ -74,10 +82,18 @@ std::string SafetySupervisor::CheckArmed(int64_t now_ns) {
            " s)";
   }
   for (size_t i = 0; i < camera_names_.size(); ++i) {
-    if (now_ns - last_frame_ns_[i].load(std::memory_order_relaxed) >
-        options_.camera_stall.count()) {
+    // Judged on the camera's own clock: a simulated camera on a busy host makes its
+    // frames late, with its clock standing still meanwhile, and is not stalled; a real
+    // sensor's clock is the steady clock.
+    const hal::Camera* camera = cameras_[i].load();
+    const int64_t clock_ns = camera != nullptr ? camera->clock_ns() : now_ns;
+    if (clock_ns - last_frame_clock_ns_[i].load() > options_.camera_stall.count()) {
       return "camera " + camera_names_[i] + " stalled (no frame for " +
              std::to_string(options_.camera_stall.count() / 1000000) + " ms)";
+    }
+    if (now_ns - last_frame_ns_[i].load() > options_.camera_silent.count()) {
+      return "camera " + camera_names_[i] + " stalled (no frame for " +
+             std::to_string(options_.camera_silent.count() / 1000000) + " ms of steady time)";
     }
   }
   if (watch_drive_) {

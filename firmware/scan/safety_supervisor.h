@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "firmware/hal/camera.h"
 #include "firmware/hal/laser_bank.h"
 #include "firmware/hal/slide_drive.h"
 #include "firmware/scan/drive_monitor.h"
@@ -20,8 +21,12 @@ namespace mirrorscan::scan {
 struct SupervisorOptions {
   std::chrono::nanoseconds period = std::chrono::milliseconds(5);
   double max_laser_on_s = 30.0;
-  // A camera that delivers no frame for this long while armed has stalled.
+  // A camera that delivers no frame for this long of its own time (Camera::clock_ns(),
+  // the steady clock for a real sensor) while armed has stalled.
   std::chrono::nanoseconds camera_stall = std::chrono::milliseconds(250);
+  // ... and one that delivers none for this long of steady time, whatever its own clock
+  // says (a simulated camera whose thread hangs making a frame: its clock stands still).
+  std::chrono::nanoseconds camera_silent = std::chrono::seconds(5);
   // No good answer from the drive for this long while armed: the link is lost.
   std::chrono::nanoseconds drive_stale = std::chrono::milliseconds(150);
 };
@@ -52,10 +57,14 @@ class SafetySupervisor {
   SafetySupervisor(const SafetySupervisor&) = delete;
   SafetySupervisor& operator=(const SafetySupervisor&) = delete;
 
-  // Starts watching: the on-time from now, the cameras named (index = camera; each as if
+  struct WatchedCamera {
+    std::string name;
+    const hal::Camera* camera = nullptr;  // outlives the arming
+  };
+  // Starts watching: the on-time from now, the cameras given (index = camera; each as if
   // it had just delivered a frame), and the drive when `watch_drive`. Call before the
   // lasers go on.
-  void Arm(const std::vector<std::string>& cameras, bool watch_drive);
+  void Arm(const std::vector<WatchedCamera>& cameras, bool watch_drive);
   // Stops watching (the sequencer switches the lasers off itself on a normal end).
   void Disarm();
   bool armed() const { return armed_.load(); }
@@ -63,8 +72,9 @@ class SafetySupervisor {
   // sequencer then waits for the trip's report instead of judging the half-stopped
   // hardware itself.
   bool tripped() const { return tripped_.load(); }
-  // A frame from `camera` arrived; any thread, lock-free.
-  void CameraFrame(int camera, int64_t now_ns);
+  // A frame from `camera` (an index given to Arm) arrived; any thread, lock-free apart
+  // from reading the camera's clock.
+  void CameraFrame(int camera);
   // Makes the outputs safe from the supervisor's thread within one wake-up; any thread,
   // never blocks, never throws (safe in callbacks).
   void RequestTrip(bool fault, const std::string& reason) noexcept;
@@ -91,7 +101,10 @@ class SafetySupervisor {
   bool watch_drive_ = false;
   // Fixed slots, so CameraFrame never races with Arm over the container.
   static constexpr size_t kMaxCameras = 8;
+  // Per camera: its own clock and the steady clock at its last frame.
+  std::array<std::atomic<int64_t>, kMaxCameras> last_frame_clock_ns_{};
   std::array<std::atomic<int64_t>, kMaxCameras> last_frame_ns_{};
+  std::array<std::atomic<const hal::Camera*>, kMaxCameras> cameras_{};
   std::vector<std::string> camera_names_;  // the watched cameras; set by Arm
 
   std::mutex mutex_;

@@ -453,12 +453,12 @@ void Sequencer::StepArming() {
       return;
     }
   }
-  std::vector<std::string> names;
+  std::vector<SafetySupervisor::WatchedCamera> watched;
   for (size_t i = 0; i < devices_.cameras.size(); ++i) {
-    names.push_back(devices_.cameras[i].name);
+    watched.push_back({devices_.cameras[i].name, devices_.cameras[i].camera});
     counters_[i]->camera_dropped_at_start = devices_.cameras[i].camera->dropped();
   }
-  supervisor_->Arm(names, true);
+  supervisor_->Arm(watched, true);
   recording_ = true;
   devices_.lasers->SetAll(true);
   lasers_on_since_ns_ = hal::SteadyNowNs();
@@ -508,7 +508,7 @@ void Sequencer::StepSweeping(const DriveSample& sample) {
 
 void Sequencer::OnFrame(int camera, hal::Frame frame) {
   const int64_t now_ns = hal::SteadyNowNs();
-  supervisor_->CameraFrame(camera, now_ns);
+  supervisor_->CameraFrame(camera);
   int64_t expected = 0;
   first_frame_ns_[camera]->compare_exchange_strong(expected, now_ns);
   if (!recording_) return;  // before the sweep: the frame goes back to the pool

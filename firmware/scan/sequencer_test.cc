@@ -59,6 +59,10 @@ class FaultyCamera final : public hal::Camera {
   void Configure(const hal::CameraConfig& config) override { inner_->Configure(config); }
   void Start(FrameCallback on_frame, EndCallback on_end) override {
     injected_ = 0;
+    {
+      std::lock_guard lock(mutex_);
+      delivered_.clear();
+    }
     inner_->Start(
         [this, on_frame](hal::Frame frame) {
           if (stalled_) return;
@@ -67,23 +71,57 @@ class FaultyCamera final : public hal::Camera {
             ++injected_;
             return;
           }
+          {
+            std::lock_guard lock(mutex_);
+            delivered_.push_back(frame.sequence());
+          }
           on_frame(std::move(frame));
         },
         std::move(on_end));
   }
   void Stop() override { inner_->Stop(); }
+  int64_t clock_ns() const override { return inner_->clock_ns(); }
   bool streaming() const override { return inner_->streaming(); }
   uint64_t dropped() const override { return inner_->dropped() + injected_; }
   const hal::CameraConfig& config() const override { return inner_->config(); }
 
   void SetStalled(bool stalled) { stalled_ = stalled; }
   void SetDropEveryNth(int n) { drop_every_ = n; }
+  // The sequence numbers of the frames handed to the consumer since Start().
+  std::vector<uint64_t> Delivered() const {
+    std::lock_guard lock(mutex_);
+    return delivered_;
+  }
 
  private:
   std::unique_ptr<hal::Camera> inner_;
+  mutable std::mutex mutex_;
+  std::vector<uint64_t> delivered_;
   std::atomic<bool> stalled_{false};
   std::atomic<int> drop_every_{0};
   std::atomic<uint64_t> injected_{0};
+};
+
+// A camera whose every frame costs the host `work` to make, as the virtual cabinet's
+// renderer does on a loaded machine: the stripe of StripeRow(sequence), late.
+class SlowRenderCamera final : public hal::ThreadedCamera {
+ public:
+  explicit SlowRenderCamera(milliseconds work) : work_(work) {}
+  ~SlowRenderCamera() override { Stop(); }
+
+ protected:
+  Produced Produce(uint64_t sequence, int64_t, uint8_t* pixels) override {
+    std::this_thread::sleep_for(work_);
+    for (int v = 0; v < kHeight; ++v) {
+      const double d = (v - StripeRow(sequence)) / 1.2;
+      std::fill_n(pixels + v * kWidth, kWidth,
+                  static_cast<uint8_t>(std::lround(20.0 + 180.0 * std::exp(-0.5 * d * d))));
+    }
+    return Produced::kFrame;
+  }
+
+ private:
+  const milliseconds work_;
 };
 
 bool Eventually(const std::function<bool()>& condition, milliseconds deadline = seconds(15)) {
@@ -247,6 +285,29 @@ class SequencerTest : public ::testing::Test {
     return archive;
   }
 
+  // A scan finished before a fault, and what must survive of it.
+  struct FinishedScan {
+    std::string id;
+    std::string sha256;  // of its archive file
+    size_t frames = 0;
+  };
+  FinishedScan ScanToTheEnd() {
+    FinishedScan scan;
+    scan.id = sequencer_->StartScan("test");
+    EXPECT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+    scan.sha256 = protocol::Sha256::HexOfFile(store_->Path(scan.id));
+    scan.frames = ReadScanFile(store_->Path(scan.id)).frames.size();
+    EXPECT_GT(scan.frames, 0u);
+    return scan;
+  }
+  // Byte for byte what it was, still listed as complete.
+  void ExpectIntact(const FinishedScan& scan) {
+    const ScanArchive archive = ExpectStored(scan.id, store::ScanState::kComplete, "complete");
+    EXPECT_EQ(archive.frames.size(), scan.frames);
+    EXPECT_EQ(protocol::Sha256::HexOfFile(store_->Path(scan.id)), scan.sha256);
+    EXPECT_EQ(store_->Get(scan.id).frames, scan.frames);
+  }
+
   fs::path dir_;
   std::unique_ptr<virtual_cabinet::DriveSim> sim_;
   std::unique_ptr<hal::ModbusSlideDrive> drive_;
@@ -361,6 +422,7 @@ TEST_F(SequencerTest, ButtonStartsAScanAndAPressDuringItAborts) {
 
 TEST_F(SequencerTest, DriveFaultMidSweepTripsWithin50ms) {
   MakeSequencer();
+  const FinishedScan earlier = ScanToTheEnd();
   const std::string id = sequencer_->StartScan("test");
   ASSERT_TRUE(WaitSweptPast(30.0));
   const int64_t fault_ns = hal::SteadyNowNs();
@@ -375,6 +437,7 @@ TEST_F(SequencerTest, DriveFaultMidSweepTripsWithin50ms) {
   EXPECT_EQ((*archive.footer)["reason"], "drive fault 66");
   EXPECT_GT(archive.frames.size(), 0u);
   EXPECT_FALSE(sim_->State().model.moving);
+  ExpectIntact(earlier);
   // The next start clears the latched fault and scans.
   sequencer_->StartScan("test");
   EXPECT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
@@ -418,10 +481,14 @@ TEST_F(SequencerTest, DriveSilentWhileHomingFaultsWithoutLaserLight) {
 
 TEST_F(SequencerTest, CameraStallTrips) {
   MakeSequencer();
+  const FinishedScan earlier = ScanToTheEnd();
   const std::string id = sequencer_->StartScan("test");
   ASSERT_TRUE(WaitSweptPast(30.0));
-  const int64_t stall_ns = hal::SteadyNowNs();
   cameras_[1]->SetStalled(true);
+  const int64_t stall_ns = hal::SteadyNowNs();
+  // (A frame that passed the stall check just before is handed on within microseconds.)
+  std::this_thread::sleep_for(milliseconds(5));
+  const std::vector<uint64_t> before_stall = cameras_[1]->Delivered();
   ASSERT_TRUE(WaitState(SequencerState::kFault));
   EXPECT_TRUE(LasersLow());
   const int64_t off_ns = LasersOffNs() - stall_ns;
@@ -431,7 +498,58 @@ TEST_F(SequencerTest, CameraStallTrips) {
   ASSERT_TRUE(trip.has_value());
   EXPECT_LE(trip->safe_ns - trip->detected_ns, 50 * kMs);
   EXPECT_NE(sequencer_->Status().reason.find("camera lower stalled"), std::string::npos);
-  ExpectStored(id, store::ScanState::kFault, "fault");
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
+  ExpectIntact(earlier);
+
+  // Every frame the stalled camera delivered since the sweep began is stored, in order:
+  // the supervisor's trip discards nothing that was already on its way to the archive.
+  std::vector<uint64_t> stored[2];
+  for (const FrameRecord& f : archive.frames) {
+    stored[f.camera].push_back(f.sequence);
+    if (f.camera == 1) {
+      EXPECT_LT(f.timestamp_ns, stall_ns) << "sequence " << f.sequence;
+    }
+  }
+  ASSERT_EQ(cameras_[1]->Delivered(), before_stall);  // nothing came after the stall
+  ASSERT_GE(stored[1].size(), 5u);  // 30 mm of a 150 mm/s sweep at 30 fps: >= 6 frames
+  const auto first = std::find(before_stall.begin(), before_stall.end(), stored[1].front());
+  ASSERT_NE(first, before_stall.end());
+  EXPECT_EQ(stored[1], std::vector<uint64_t>(first, before_stall.end()));
+  EXPECT_EQ((*archive.footer)["frames"][1], stored[1].size());
+  EXPECT_EQ((*archive.footer)["dropped"], 0);
+  // The other camera went on until the trip, ~250 ms (7 frames) longer.
+  EXPECT_GE(stored[0].size(), stored[1].size() + 3);
+}
+
+// Frames that take the host longer than the stall window to make (a renderer on a busy
+// machine) are late, not a stall: the supervisor judges on the camera's own clock, which
+// stands still meanwhile. (On the steady clock this faulted "camera lower stalled".)
+TEST_F(SequencerTest, FramesLaterThanTheStallWindowAreNotAStall) {
+  auto slow = std::make_unique<SlowRenderCamera>(milliseconds(300));
+  hal::CameraConfig config = cameras_[1]->config();
+  slow->Configure(config);
+  cameras_[1] = std::make_unique<FaultyCamera>(std::move(slow));
+  ASSERT_GT(300 * kMs, options_.supervisor.camera_stall.count());
+  MakeSequencer();
+  const std::string id = sequencer_->StartScan("test");
+  ASSERT_TRUE(WaitState(SequencerState::kDone)) << sequencer_->Status().reason;
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kComplete, "complete");
+  std::vector<const FrameRecord*> lower;
+  for (const FrameRecord& f : archive.frames) {
+    if (f.camera == 1) lower.push_back(&f);
+  }
+  // A 1 s sweep at one frame made per >= 300 ms; each on its stripe row.
+  ASSERT_GE(lower.size(), 2u);
+  EXPECT_LE(lower.size(), 4u);
+  for (size_t i = 0; i < lower.size(); ++i) {
+    if (i > 0) {
+      EXPECT_EQ(lower[i]->sequence, lower[i - 1]->sequence + 1);
+      EXPECT_GT(lower[i]->timestamp_ns, lower[i - 1]->timestamp_ns + 33 * kMs);
+    }
+    ASSERT_FALSE(lower[i]->peaks.empty());
+    EXPECT_NEAR(lower[i]->peaks[0].v, StripeRow(lower[i]->sequence), 0.1);
+  }
+  EXPECT_EQ((*archive.footer)["dropped"], 0);
 }
 
 TEST_F(SequencerTest, DroppedFramesAreCountedAndTheScanCompletes) {

@@ -38,7 +38,6 @@ void VirtualCamera::CheckConfig(const hal::CameraConfig& config) {
 }
 
 hal::ThreadedCamera::Produced VirtualCamera::Plan(uint64_t sequence) {
-  if (stalled_.load()) return Produced::kSkip;
   const int n = drop_every_.load();
   if (n > 0 && (sequence + 1) % static_cast<uint64_t>(n) == 0) return Produced::kDrop;
   return Produced::kFrame;

@@ -26,11 +26,14 @@ struct VirtualCameraOptions {
 //
 // Configure() must ask for the scene camera's size and a live rate (fps > 0); anything
 // else is HardwareError kInvalidArgument. Rendering is slower than a sensor: when a frame
-// takes longer than the period, the next starts late rather than being dropped.
+// takes longer than the period, the next starts late rather than being dropped. The
+// camera's clock (clock_ns, ThreadedCamera) stands still while it renders, so a stall
+// watchdog judges it on its own time: a busy host makes its frames late, never "stalled";
+// SetStalled(true) lets its clock run with no frames, which a watchdog sees at once.
 //
 // Fault injection (any thread, any time):
-//  - SetStalled(true): the camera stops delivering; no frame, no sequence number, no
-//    drop is counted (a hung sensor: only a watchdog notices). false resumes.
+//  - SetStalled(true) (ThreadedCamera): the camera stops delivering; no frame, no
+//    sequence number, no drop is counted (a hung sensor: only a watchdog notices).
 //  - SetDropEveryNth(n): frames with (sequence + 1) % n == 0 are lost as if no buffer
 //    were free: they leave a sequence gap and count in dropped(). 0 turns it off.
 //
@@ -40,7 +43,6 @@ class VirtualCamera final : public hal::ThreadedCamera {
   VirtualCamera(const Renderer& renderer, VirtualCameraOptions options);
   ~VirtualCamera() override;
 
-  void SetStalled(bool stalled) { stalled_ = stalled; }
   void SetDropEveryNth(int n) { drop_every_ = n > 0 ? n : 0; }
 
  protected:
@@ -51,7 +53,6 @@ class VirtualCamera final : public hal::ThreadedCamera {
  private:
   const Renderer& renderer_;
   VirtualCameraOptions options_;
-  std::atomic<bool> stalled_{false};
   std::atomic<int> drop_every_{0};
 };
 

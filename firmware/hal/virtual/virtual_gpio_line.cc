@@ -24,9 +24,17 @@ void VirtualGpioLine::SetValue(bool high) {
                         "virtual gpio " + name_ + ": SetValue on an input line");
   }
   ThrowIfFailing("set value");
-  if (high != level_) last_change_ns_ = SteadyNowNs();
+  const int64_t now_ns = SteadyNowNs();
+  if (high != level_) last_change_ns_ = now_ns;
   level_ = high;
   history_.push_back(high);
+  if (state_slot_ != nullptr) VirtualLineStates::Record(*state_slot_, high, now_ns);
+}
+
+void VirtualGpioLine::MirrorTo(std::shared_ptr<VirtualLineStates> states) {
+  std::lock_guard lock(mutex_);
+  state_slot_ = states->Add(name_, level_);
+  states_ = std::move(states);
 }
 
 bool VirtualGpioLine::GetValue() {

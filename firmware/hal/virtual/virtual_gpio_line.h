@@ -4,12 +4,14 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "firmware/hal/gpio_line.h"
+#include "firmware/hal/virtual/virtual_line_states.h"
 
 namespace mirrorscan::hal {
 
@@ -40,6 +42,9 @@ class VirtualGpioLine final : public GpioLine {
   // Sets an input's level at `timestamp_ns`; queues an edge if the level changes.
   void InjectEdge(int64_t timestamp_ns, bool high);
   void SetFailing(bool failing);
+  // Mirrors the driven level into `states` (a slot named name()) from now on, for
+  // observers outside the process. Throws HardwareError when it has no free slot.
+  void MirrorTo(std::shared_ptr<VirtualLineStates> states);
   const std::string& name() const { return name_; }
   Direction direction() const { return direction_; }
 
@@ -55,6 +60,8 @@ class VirtualGpioLine final : public GpioLine {
   std::vector<bool> history_;
   int64_t last_change_ns_ = 0;
   std::deque<GpioEdge> edges_;
+  std::shared_ptr<VirtualLineStates> states_;
+  VirtualLineStates::LineState* state_slot_ = nullptr;  // in states_
 };
 
 }  // namespace mirrorscan::hal
