@@ -39,6 +39,13 @@ function setup(canvas) {
 export function showMesh(canvas, bytes) {
   if (!state) state = setup(canvas);
   const geometry = new PLYLoader().parse(bytes);
+  // `process` writes double-precision vertices; WebGL takes 32-bit floats only.
+  for (const name of Object.keys(geometry.attributes)) {
+    const attribute = geometry.getAttribute(name);
+    if (attribute.array instanceof Float64Array) {
+      geometry.setAttribute(name, new THREE.BufferAttribute(Float32Array.from(attribute.array), attribute.itemSize));
+    }
+  }
   if (!geometry.getAttribute('normal')) geometry.computeVertexNormals();
   geometry.computeBoundingBox();
   if (state.mesh) {
