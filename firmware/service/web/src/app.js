@@ -311,7 +311,7 @@ async function showResult(id) {
   if (results.includes('measurements.json')) {
     const m = await (await api(`/scans/${id}/results/measurements.json`)).json();
     const body = $('measurements').querySelector('tbody');
-    const rows = [{ name: 'stature', value_mm: m.stature_mm }, ...(m.measurements || [])];
+    const rows = m.measurements || [];  // stature among them, with its reason when withheld
     for (const entry of rows) {
       const row = document.createElement('tr');
       cell(row, entry.name.replace(/_/g, ' '));
