@@ -60,6 +60,7 @@ void to_json(nlohmann::json& j, const DeviceStatus& v) {
        {"firmware_version", v.firmware_version},
        {"calibration_sha256", v.calibration_sha256},
        {"calibration_problem", v.calibration_problem},
+       {"cameras", v.cameras},
        {"scan", v.scan},
        {"disk", v.disk}};
 }
@@ -71,12 +72,13 @@ void from_json(const nlohmann::json& j, DeviceStatus& v) {
   v.calibration_problem = j.value("calibration_problem", "");
   v.scan = j.at("scan").get<ScanProgress>();
   v.disk = j.value("disk", DiskUse{});
+  v.cameras = j.value("cameras", std::vector<std::string>{});
 }
 
 void to_json(nlohmann::json& j, const ScanSummary& v) {
-  j = {{"id", v.id},           {"state", v.state},   {"reason", v.reason},
-       {"created", v.created}, {"frames", v.frames}, {"peaks", v.peaks},
-       {"bytes", v.bytes},     {"header", v.header}, {"footer", v.footer}};
+  j = {{"id", v.id},         {"state", v.state},    {"reason", v.reason}, {"created", v.created},
+       {"frames", v.frames}, {"peaks", v.peaks},    {"bytes", v.bytes},   {"header", v.header},
+       {"footer", v.footer}, {"results", v.results}};
 }
 
 void from_json(const nlohmann::json& j, ScanSummary& v) {
@@ -89,6 +91,43 @@ void from_json(const nlohmann::json& j, ScanSummary& v) {
   v.bytes = j.value("bytes", uint64_t{0});
   v.header = j.value("header", nlohmann::json::object());
   v.footer = j.value("footer", nlohmann::json());
+  v.results = j.value("results", std::vector<std::string>{});
+}
+
+const std::vector<ResultKind>& ResultKinds() {
+  // Generous against what `process` writes for a body (a mesh of a few MB, previews and
+  // JSON of some kB): room for finer meshes, a bound on what a host can make us store.
+  constexpr uint64_t kMiB = 1u << 20;
+  static const std::vector<ResultKind> kinds = {
+      {"mesh.ply", "application/octet-stream", 64 * kMiB},
+      {"preview-front.png", "image/png", 8 * kMiB},
+      {"preview-back.png", "image/png", 8 * kMiB},
+      {"preview-left.png", "image/png", 8 * kMiB},
+      {"preview-right.png", "image/png", 8 * kMiB},
+      {"preview-cloud-views.png", "image/png", 8 * kMiB},
+      {"preview-cloud-cameras.png", "image/png", 8 * kMiB},
+      {"preview-measurements.png", "image/png", 8 * kMiB},
+      {"measurements.json", "application/json", 1 * kMiB},
+      {"summary.json", "application/json", 1 * kMiB},
+  };
+  return kinds;
+}
+
+const ResultKind* FindResultKind(std::string_view name) {
+  for (const ResultKind& kind : ResultKinds()) {
+    if (kind.name == name) return &kind;
+  }
+  return nullptr;
+}
+
+void to_json(nlohmann::json& j, const ResultInfo& v) {
+  j = {{"name", v.name}, {"bytes", v.bytes}, {"modified", v.modified}};
+}
+
+void from_json(const nlohmann::json& j, ResultInfo& v) {
+  v.name = j.at("name").get<std::string>();
+  v.bytes = j.value("bytes", uint64_t{0});
+  v.modified = j.value("modified", "");
 }
 
 void to_json(nlohmann::json& j, const ScanEventMessage& v) {

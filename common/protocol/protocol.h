@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -59,6 +60,7 @@ struct DeviceStatus {
   std::string calibration_sha256;  // empty: no calibration stored
   // Why the calibration found at start was set aside (empty: none was).
   std::string calibration_problem;
+  std::vector<std::string> cameras;  // the board's camera names (for captures, previews)
   ScanProgress scan;
   DiskUse disk;
 };
@@ -74,6 +76,30 @@ struct ScanSummary {
   uint64_t bytes = 0;
   nlohmann::json header = nlohmann::json::object();
   nlohmann::json footer;  // null unless finished
+  // The host's processed results stored with the scan (PUT /scans/{id}/results/{name}),
+  // by name; empty until a host uploads them.
+  std::vector<std::string> results;
+};
+
+// A processed result the host may store with a scan: PUT /api/v1/scans/{id}/results/{name}.
+// The list is fixed (no file name is ever formed from a client's string) and each name has
+// its own size limit, checked before the body is read.
+struct ResultKind {
+  std::string_view name;          // "mesh.ply", "preview-front.png", ...
+  std::string_view content_type;  // served with GET
+  uint64_t max_bytes;
+};
+// Every name `mirrorscan process` writes that the device keeps: mesh.ply, the preview PNGs,
+// measurements.json, summary.json.
+const std::vector<ResultKind>& ResultKinds();
+// The kind named `name`, or nullptr for anything not on the list.
+const ResultKind* FindResultKind(std::string_view name);
+
+// One stored result in GET /api/v1/scans/{id}/results.
+struct ResultInfo {
+  std::string name;
+  uint64_t bytes = 0;
+  std::string modified;  // UTC, "2026-11-24T02:56:40Z"
 };
 
 // One server-sent event on GET /api/v1/events: "event: <type>", "data: <ScanProgress>".
@@ -98,6 +124,8 @@ void to_json(nlohmann::json& j, const ScanSummary& v);
 void from_json(const nlohmann::json& j, ScanSummary& v);
 void to_json(nlohmann::json& j, const ScanEventMessage& v);
 void from_json(const nlohmann::json& j, ScanEventMessage& v);
+void to_json(nlohmann::json& j, const ResultInfo& v);
+void from_json(const nlohmann::json& j, ResultInfo& v);
 void to_json(nlohmann::json& j, const ApiError& v);
 void from_json(const nlohmann::json& j, ApiError& v);
 

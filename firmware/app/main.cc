@@ -1,8 +1,9 @@
 // mirrorscand: the scanner's daemon (docs/firmware.md). Builds the board's devices, opens
 // the scan store, runs the sequencer and its safety supervisor until SIGTERM/SIGINT.
 //
-// Exit codes: 0 stopped by a signal, or --exit-after-scan and the scan completed;
-// 1 --exit-after-scan and the scan ended in fault or aborted; 2 bad command line or
+// Exit codes: 0 stopped by a signal, or --exit-after-scan and the scan completed, or every
+// --check passed; 1 --exit-after-scan and the scan ended in fault or aborted, or a --check
+// failed; 2 bad command line or
 // board.json; 3 a device or the device API failed to start; 4 the data
 // directory cannot be used; 5 an internal error (the lasers were switched off first).
 
@@ -11,6 +12,8 @@
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -26,6 +29,7 @@
 #include <spdlog/spdlog.h>
 
 #include "common/config/json_reader.h"
+#include "firmware/app/self_check.h"
 #include "firmware/board/board_config.h"
 #include "firmware/board/devices.h"
 #include "firmware/hal/clock.h"
@@ -58,6 +62,18 @@ constexpr const char* kUsageText = R"(usage: mirrorscand --board BOARD.json --da
                       virtual boards only: SIGUSR2 injects FAULT, one of drive-fault
                       (the simulated drive latches fault code 0x42) and
                       camera-stall:NAME (that camera stops delivering frames)
+  --web-dir DIR       the web page's files (default: ../share/mirrorscan/web beside
+                      this program, as installed and as built; none there: no page)
+  --check             check the board once and exit (0 all passed, 1 a check failed):
+                      cameras stream, lasers toggle (seen by a camera), drive answers and
+                      homes, disk room and writes, calibration stored and valid, clock;
+                      one line per check. The daemon must not be running.
+  --check-fault lasers-stuck|drive-silent
+                      virtual boards only, for tests: the laser lines never go off, or
+                      the simulated drive stops answering
+  --watchdog-hang-hook
+                      test hook: SIGUSR2 hangs the control loop for good (an event
+                      listener that never returns), so the systemd watchdog's pings stop
   --scan-on-start     start one scan as soon as the daemon is ready (origin "test")
   --exit-after-scan   exit once a scan has ended (0 complete, 1 fault or aborted)
   --log-level LEVEL   trace, debug, info (default), warn, error
@@ -65,7 +81,7 @@ constexpr const char* kUsageText = R"(usage: mirrorscand --board BOARD.json --da
 
 Signals: SIGTERM/SIGINT abort a running scan (lasers off at once) and stop the daemon;
 SIGUSR1 presses the virtual button (boards with gpio.backend "virtual"); SIGUSR2
-injects the --fault-on-sigusr2 fault.
+injects the --fault-on-sigusr2 fault (or, with --watchdog-hang-hook, hangs the loop).
 )";
 
 struct Args {
@@ -73,11 +89,15 @@ struct Args {
   std::filesystem::path data_dir;
   std::string listen;
   std::filesystem::path scene;
+  std::filesystem::path web_dir;
   std::optional<std::filesystem::path> interlock_state;
   std::optional<std::filesystem::path> line_state;
   std::string sigusr2_fault;
   bool scan_on_start = false;
   bool exit_after_scan = false;
+  bool check = false;
+  std::string check_fault;
+  bool watchdog_hang_hook = false;
   std::string log_level = "info";
 };
 
@@ -105,6 +125,8 @@ std::optional<Args> ParseArgs(int argc, char** argv) {
       args.listen = value();
     } else if (flag == "--scene") {
       args.scene = value();
+    } else if (flag == "--web-dir") {
+      args.web_dir = value();
     } else if (flag == "--interlock-state") {
       args.interlock_state = value();
     } else if (flag == "--line-state") {
@@ -116,6 +138,15 @@ std::optional<Args> ParseArgs(int argc, char** argv) {
         throw std::invalid_argument("--fault-on-sigusr2: drive-fault or camera-stall:NAME, not " +
                                     args.sigusr2_fault);
       }
+    } else if (flag == "--check") {
+      args.check = true;
+    } else if (flag == "--check-fault") {
+      args.check_fault = value();
+      if (args.check_fault != "lasers-stuck" && args.check_fault != "drive-silent") {
+        throw std::invalid_argument("--check-fault: expected lasers-stuck or drive-silent");
+      }
+    } else if (flag == "--watchdog-hang-hook") {
+      args.watchdog_hang_hook = true;
     } else if (flag == "--scan-on-start") {
       args.scan_on_start = true;
     } else if (flag == "--exit-after-scan") {
@@ -225,9 +256,49 @@ std::function<void()> VirtualFault(const std::string& fault, const board::BoardC
   return {};
 }
 
+// --web-dir, or the page installed (and built) beside the program: bin/../share/mirrorscan/web.
+std::filesystem::path WebDir(const Args& args) {
+  std::error_code ec;
+  if (!args.web_dir.empty()) {
+    if (!std::filesystem::is_regular_file(args.web_dir / "index.html", ec)) {
+      throw ConfigError("--web-dir " + args.web_dir.string() + ": no index.html there");
+    }
+    return args.web_dir;
+  }
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::filesystem::path beside = self.parent_path().parent_path() / "share/mirrorscan/web";
+  if (!ec && std::filesystem::is_regular_file(beside / "index.html", ec)) return beside;
+  spdlog::info("no web page ({} has none; --web-dir DIR)", beside.string());
+  return {};
+}
+
 bool Ended(scan::SequencerState state) {
   return state == scan::SequencerState::kDone || state == scan::SequencerState::kFault ||
          state == scan::SequencerState::kAborted;
+}
+
+// --check: one line per check on stdout, exit 0 when every one passed.
+int Check(const Args& args, const board::BoardConfig& config) {
+  if (!args.check_fault.empty() && config.gpio.backend != hal::GpioBackend::kVirtual) {
+    spdlog::error("--check-fault is for virtual boards only");
+    return kUsage;
+  }
+  app::SelfCheckOptions options;
+  options.board_file = args.board;
+  options.data_dir = args.data_dir;
+  options.scene = args.scene;
+  options.fault_lasers_stuck = args.check_fault == "lasers-stuck";
+  options.fault_drive_silent = args.check_fault == "drive-silent";
+  const std::vector<app::CheckResult> results =
+      app::RunSelfCheck(config, options, [](const app::CheckResult& r) {
+        std::printf("%-4s %s: %s\n", r.ok ? "ok" : "FAIL", r.name.c_str(), r.detail.c_str());
+        std::fflush(stdout);
+      });
+  const auto failed = std::count_if(results.begin(), results.end(),
+                                    [](const app::CheckResult& r) { return !r.ok; });
+  std::printf("%s: %zu checks, %ld failed\n", failed == 0 ? "check passed" : "check FAILED",
+              results.size(), static_cast<long>(failed));
+  return failed == 0 ? kOk : kScanFailed;
 }
 
 int Run(const Args& args, const sigset_t& signals) {
@@ -238,6 +309,7 @@ int Run(const Args& args, const sigset_t& signals) {
     spdlog::error("{}", e.what());
     return kUsage;
   }
+  if (args.check) return Check(args, config);
   const std::string listen = args.listen.empty() ? config.service.listen : args.listen;
 
   std::unique_ptr<store::ScanStore> store;
@@ -329,6 +401,7 @@ int Run(const Args& args, const sigset_t& signals) {
     }
     service::ApiServerOptions api_options;
     api_options.firmware_version = MIRRORSCAN_VERSION;
+    api_options.web_dir = WebDir(args);
     api = std::make_unique<service::ApiServer>(*store, *sequencer, config, *calibration,
                                                service::ResolveServiceToken(config.service),
                                                api_options);
@@ -342,6 +415,15 @@ int Run(const Args& args, const sigset_t& signals) {
   } catch (const std::exception& e) {
     spdlog::error("device API: {}", e.what());
     return kHardware;
+  }
+
+  // The watchdog's test hook: once armed (SIGUSR2), the next event the sequencer emits
+  // from its control loop never returns, as a driver call that hangs would not.
+  std::atomic<bool> hang{false};
+  if (args.watchdog_hang_hook) {
+    sequencer->Subscribe([&hang](const scan::ScanEvent&) {
+      while (hang.load()) std::this_thread::sleep_for(std::chrono::seconds(1));
+    });
   }
 
   SystemdNotifier notifier;
@@ -370,11 +452,15 @@ int Run(const Args& args, const sigset_t& signals) {
       sequencer->Abort(signal == SIGTERM ? "SIGTERM" : "SIGINT");
       break;
     }
+    if (signal == SIGUSR2 && args.watchdog_hang_hook) {
+      spdlog::warn("SIGUSR2: --watchdog-hang-hook: hanging the control loop");
+      hang = true;
+    }
     if (signal == SIGUSR1) {
       PressVirtualButton(devices, config.gpio.debounce_ms);
       scan_started = true;
     }
-    if (signal == SIGUSR2) {
+    if (signal == SIGUSR2 && !args.watchdog_hang_hook) {
       if (inject_fault) {
         spdlog::warn("SIGUSR2: injecting {}", args.sigusr2_fault);
         inject_fault();

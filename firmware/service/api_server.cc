@@ -1,11 +1,13 @@
 #include "firmware/service/api_server.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <condition_variable>
+#include <ctime>
 #include <deque>
 #include <functional>
 #include <regex>
@@ -16,9 +18,11 @@
 #include <nlohmann/json.hpp>
 
 #include "common/config/json_reader.h"
+#include "common/peaks/peaks.h"
 #include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
 #include "firmware/service/guarded_server.h"
+#include "firmware/service/preview_image.h"
 
 namespace mirrorscan::service {
 namespace {
@@ -265,7 +269,13 @@ void ApiServer::Stop() {
 
 void ApiServer::Route() {
   GuardedServer& s = *server_;
-  s.set_payload_max_length(options_.max_body_bytes);
+  // httplib's own check against Content-Length, at the largest limit of any route; the
+  // per-route limit (BodyLimit) is applied before it, in the pre-routing handler.
+  size_t largest = options_.max_body_bytes;
+  for (const protocol::ResultKind& kind : protocol::ResultKinds()) {
+    largest = std::max<size_t>(largest, kind.max_bytes);
+  }
+  s.set_payload_max_length(largest);
 
   // Runs once the headers are in and before any byte of a body is read: the token, the
   // failed-token limit and the declared size are checked here, so a client without the
@@ -396,11 +406,46 @@ void ApiServer::Route() {
   s.Put(api + "/calibration", with_body(&ApiServer::HandlePutCalibration));
   s.Post(api + "/captures", wrap(&ApiServer::HandleCapture));
   s.Post(api + "/captures", with_body(&ApiServer::HandleCapture));
+  s.Get(api + "/preview", wrap(&ApiServer::HandlePreview));
+  s.Get(scan + "/results", wrap(&ApiServer::HandleListResults));
+  s.Get(scan + "/results/([^/]+)", wrap(&ApiServer::HandleGetResult));
+  if (!options_.web_dir.empty()) {
+    if (!s.set_mount_point("/", options_.web_dir.string())) {
+      throw std::invalid_argument("web page: no folder " + options_.web_dir.string());
+    }
+    s.set_file_request_handler([](const Request&, Response& res) {
+      // The page runs only its own scripts and talks only to this device.
+      res.set_header("Content-Security-Policy",
+                     "default-src 'self'; img-src 'self' blob: data:; style-src 'self'; "
+                     "script-src 'self'; connect-src 'self'; frame-ancestors 'none'");
+      res.set_header("X-Content-Type-Options", "nosniff");
+      res.set_header("Referrer-Policy", "no-referrer");
+      res.set_header("Cache-Control", "no-cache");
+    });
+  }
+  // Without a body httplib calls the plain handler: an empty result is refused there.
+  s.Put(scan + "/results/([^/]+)", wrap(&ApiServer::HandleEmptyResult));
+  s.Put(scan + "/results/([^/]+)",
+        [this](const Request& req, Response& res, const httplib::ContentReader& read) {
+          try {
+            HandlePutResult(req, res, read);
+          } catch (const HttpError& e) {
+            SendError(res, e.status(), e.what());
+          } catch (const store::StoreError& e) {
+            SendError(res, StoreErrorStatus(e.kind()), e.what());
+          } catch (const std::exception& e) {
+            SendError(res, 500, e.what());
+          }
+        });
 }
 
 bool ApiServer::NeedsToken(const Request& req) const {
   if (req.method != "GET" && req.method != "HEAD") return true;
-  if (req.path == std::string(protocol::kApiPrefix) + "/status") return false;
+  const std::string api = std::string(protocol::kApiPrefix) + "/";
+  if (req.path.compare(0, api.size(), api) != 0) return false;  // the page's static files
+  if (req.path == api + "status") return false;
+  // A preview with the lasers on switches them on: never without the token.
+  if (req.path == api + "preview" && req.get_param_value("lasers") == "1") return true;
   return board_.service.auth_reads;
 }
 
@@ -436,6 +481,16 @@ bool ApiServer::Authorize(const Request& req, Response& res) {
   return true;
 }
 
+size_t ApiServer::BodyLimit(const Request& req) const {
+  if (req.method != "PUT") return options_.max_body_bytes;
+  static const std::regex kResult(std::string(protocol::kApiPrefix) +
+                                  "/scans/[^/]+/results/([^/]+)");
+  std::smatch match;
+  if (!std::regex_match(req.path, match, kResult)) return options_.max_body_bytes;
+  const protocol::ResultKind* kind = protocol::FindResultKind(match[1].str());
+  return kind != nullptr ? kind->max_bytes : options_.max_body_bytes;
+}
+
 bool ApiServer::BodyFits(const Request& req, Response& res) const {
   if (!req.has_header("Content-Length")) return true;  // none, or chunked: read with the limit
   const auto length = ParseUnsigned(req.get_header_value("Content-Length"));
@@ -443,10 +498,11 @@ bool ApiServer::BodyFits(const Request& req, Response& res) const {
     SendError(res, 400, "Content-Length: expected a byte count");
     return false;
   }
-  if (*length > options_.max_body_bytes) {
+  const size_t limit = BodyLimit(req);
+  if (*length > limit) {
     SendError(res, 413,
               "request body too large (" + std::to_string(*length) + " bytes; limit " +
-                  std::to_string(options_.max_body_bytes) + ")");
+                  std::to_string(limit) + ")");
     return false;
   }
   return true;
@@ -458,6 +514,7 @@ void ApiServer::HandleStatus(const Request&, Response& res) {
   status.firmware_version = options_.firmware_version;
   status.calibration_sha256 = calibration_.Sha256();
   status.calibration_problem = calibration_.problem();
+  for (const board::BoardCamera& camera : board_.cameras) status.cameras.push_back(camera.name);
   status.scan = ToProgress(control_.Status());
   std::error_code ec;
   const fs::space_info space = fs::space(store_.dir(), ec);
@@ -480,9 +537,21 @@ void ApiServer::HandleStatus(const Request&, Response& res) {
   SendJson(res, 200, status);
 }
 
+protocol::ScanSummary ApiServer::Summary(const store::ScanInfo& info) const {
+  protocol::ScanSummary summary = ToSummary(info);
+  try {
+    for (const store::StoredResult& result : store_.Results(info.id)) {
+      summary.results.push_back(result.name);
+    }
+  } catch (const store::StoreError&) {
+    // deleted since it was listed: no results
+  }
+  return summary;
+}
+
 void ApiServer::HandleListScans(const Request&, Response& res) {
   json scans = json::array();
-  for (const store::ScanInfo& info : store_.List()) scans.push_back(ToSummary(info));
+  for (const store::ScanInfo& info : store_.List()) scans.push_back(Summary(info));
   SendJson(res, 200, {{"scans", scans}});
 }
 
@@ -510,7 +579,7 @@ void ApiServer::HandleAbort(const Request& req, Response& res) {
 }
 
 void ApiServer::HandleGetScan(const Request& req, Response& res) {
-  SendJson(res, 200, ToSummary(store_.Get(ScanIdFrom(req))));
+  SendJson(res, 200, Summary(store_.Get(ScanIdFrom(req))));
 }
 
 void ApiServer::HandleDeleteScan(const Request& req, Response& res) {
@@ -763,6 +832,180 @@ void ApiServer::HandleCapture(const Request& req, Response& res) {
   res.set_header("X-Mirrorscan-Timestamp-Ns", std::to_string(frame.timestamp_ns));
   SetVersionHeader(res);
   res.set_content(pgm, "image/x-portable-graymap");
+}
+
+namespace {
+
+std::string FormatUtc(fs::file_time_type time) {
+  const auto system = std::chrono::time_point_cast<std::chrono::system_clock::duration>(
+      time - fs::file_time_type::clock::now() + std::chrono::system_clock::now());
+  const std::time_t t = std::chrono::system_clock::to_time_t(system);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return text;
+}
+
+const protocol::ResultKind& ResultKindFrom(const httplib::Request& req) {
+  const protocol::ResultKind* kind = protocol::FindResultKind(req.matches[2].str());
+  if (kind == nullptr) {
+    std::string names;
+    for (const protocol::ResultKind& k : protocol::ResultKinds()) {
+      names += (names.empty() ? "" : ", ") + std::string(k.name);
+    }
+    throw HttpError(404,
+                    "no result named \"" + req.matches[2].str() + "\" (results: " + names + ")");
+  }
+  return *kind;
+}
+
+// What the page shows must be what the name says: a PNG, a PLY, a JSON object.
+void CheckResultContent(const protocol::ResultKind& kind, const std::string& head,
+                        const std::string* whole) {
+  const std::string name(kind.name);
+  auto ends_with = [&](std::string_view suffix) {
+    return name.size() >= suffix.size() &&
+           name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
+  };
+  if (ends_with(".png") && head.rfind("\x89PNG\r\n\x1a\n", 0) != 0) {
+    throw HttpError(400, name + ": not a PNG image");
+  }
+  if (ends_with(".ply") && head.rfind("ply\n", 0) != 0 && head.rfind("ply\r\n", 0) != 0) {
+    throw HttpError(400, name + ": not a PLY file (no \"ply\" line)");
+  }
+  if (ends_with(".json") && whole != nullptr) {
+    const json parsed = json::parse(*whole, nullptr, false);
+    if (parsed.is_discarded() || !parsed.is_object()) {
+      throw HttpError(400, name + ": not a JSON object");
+    }
+  }
+}
+
+}  // namespace
+
+void ApiServer::HandlePreview(const Request& req, Response& res) {
+  const std::string camera = req.get_param_value("camera");
+  const std::string lasers = req.get_param_value("lasers");
+  if (lasers != "" && lasers != "0" && lasers != "1")
+    throw HttpError(400, "lasers: expected 0 or 1");
+  bool known = false;
+  for (const board::BoardCamera& c : board_.cameras) known = known || c.name == camera;
+  if (!known) throw HttpError(400, "camera: no camera \"" + camera + "\" on this board");
+  const bool lasers_on = lasers == "1";
+  PreviewEntry entry;
+  {
+    // Nothing is captured unless someone asks; several viewers share one capture.
+    std::lock_guard lock(preview_mutex_);
+    PreviewEntry& cached = preview_cache_[camera + (lasers_on ? "+lasers" : "")];
+    const auto now = std::chrono::steady_clock::now();
+    if (cached.png.empty() || now - cached.time >= options_.preview_interval) {
+      const scan::CapturedFrame frame = control_.Capture(camera, lasers_on);
+      if (frame.width <= 0 || frame.height <= 0 ||
+          frame.pixels.size() !=
+              static_cast<size_t>(frame.width) * static_cast<size_t>(frame.height)) {
+        throw HttpError(500, "the camera returned a malformed frame");
+      }
+      const ImageView view{frame.pixels.data(), frame.width, frame.height, frame.width};
+      const std::vector<Peak> peaks = ExtractPeaks(view, board_.peaks);
+      cached.png =
+          RenderPreviewPng(frame.pixels, frame.width, frame.height, peaks, options_.preview_scale);
+      cached.peaks = peaks.size();
+      cached.time = std::chrono::steady_clock::now();
+    }
+    entry = cached;
+  }
+  res.status = 200;
+  res.set_header("Cache-Control", "no-store");
+  res.set_header("X-Mirrorscan-Peaks", std::to_string(entry.peaks));
+  SetVersionHeader(res);
+  res.set_content(entry.png, "image/png");
+}
+
+void ApiServer::HandleListResults(const Request& req, Response& res) {
+  const std::string id = ScanIdFrom(req);
+  json results = json::array();
+  for (const store::StoredResult& r : store_.Results(id)) {
+    results.push_back(protocol::ResultInfo{r.name, r.bytes, FormatUtc(r.modified)});
+  }
+  SendJson(res, 200, {{"id", id}, {"results", results}});
+}
+
+void ApiServer::HandleGetResult(const Request& req, Response& res) {
+  const std::string id = ScanIdFrom(req);
+  const protocol::ResultKind& kind = ResultKindFrom(req);
+  const fs::path path = store_.ResultPath(id, std::string(kind.name));
+  // The descriptor keeps the bytes of this version even if an upload replaces the file.
+  auto file = std::make_shared<FileDescriptor>(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  if (file->fd < 0) throw HttpError(404, "scan " + id + " has no result " + std::string(kind.name));
+  struct stat info {};
+  if (::fstat(file->fd, &info) != 0) throw HttpError(500, "cannot read " + std::string(kind.name));
+  const uint64_t size = static_cast<uint64_t>(info.st_size);
+  res.status = 200;
+  res.set_header("Cache-Control", "no-store");  // a body scan: never in a shared cache
+  res.set_header("Content-Disposition",
+                 "attachment; filename=\"" + id + "-" + std::string(kind.name) + "\"");
+  SetVersionHeader(res);
+  if (size == 0) {
+    res.set_content("", std::string(kind.content_type));
+    return;
+  }
+  res.set_content_provider(size, std::string(kind.content_type),
+                           [file](size_t offset, size_t length, httplib::DataSink& sink) {
+                             std::vector<char> buffer(std::min(length, kReadChunk));
+                             const ssize_t n =
+                                 ReadAt(file->fd, buffer.data(), buffer.size(), offset);
+                             if (n <= 0) return false;
+                             return sink.write(buffer.data(), static_cast<size_t>(n));
+                           });
+}
+
+void ApiServer::HandleEmptyResult(const Request& req, Response&) {
+  ScanIdFrom(req);
+  ResultKindFrom(req);
+  throw HttpError(400, "request body: expected the result's bytes");
+}
+
+void ApiServer::HandlePutResult(const Request& req, Response& res,
+                                const httplib::ContentReader& read) {
+  const std::string id = ScanIdFrom(req);
+  const protocol::ResultKind& kind = ResultKindFrom(req);
+  const std::string name(kind.name);
+  std::unique_ptr<store::ResultUpload> upload = store_.BeginResult(id, name);
+  constexpr size_t kHead = 16;
+  const bool is_json = name.size() > 5 && name.compare(name.size() - 5, 5, ".json") == 0;
+  std::string head;   // the first bytes, for the content check
+  std::string whole;  // JSON results are parsed whole (at most 1 MiB)
+  bool too_large = false;
+  std::string store_error;
+  const bool complete = read([&](const char* data, size_t length) {
+    if (upload->bytes() + length > kind.max_bytes) {
+      too_large = true;
+      return false;
+    }
+    if (head.size() < kHead) head.append(data, std::min(length, kHead - head.size()));
+    if (is_json) whole.append(data, length);
+    try {
+      upload->Append(data, length);
+    } catch (const store::StoreError& e) {
+      store_error = e.what();
+      return false;
+    }
+    return true;
+  });
+  if (!complete) {
+    GuardedServer::CloseAfterResponse();  // the rest of the body is never read
+    if (!store_error.empty()) throw HttpError(500, store_error);
+    if (too_large) {
+      throw HttpError(413,
+                      name + " too large (limit " + std::to_string(kind.max_bytes) + " bytes)");
+    }
+    throw HttpError(400, "request body: incomplete or malformed chunked encoding");
+  }
+  if (upload->bytes() == 0) throw HttpError(400, "request body: expected the result's bytes");
+  CheckResultContent(kind, head, is_json ? &whole : nullptr);
+  upload->Commit();
+  SendJson(res, 200, {{"id", id}, {"name", name}, {"bytes", upload->bytes()}});
 }
 
 }  // namespace mirrorscan::service

@@ -15,6 +15,7 @@
 #include <string>
 #include <thread>
 
+#include "common/protocol/protocol.h"
 #include "firmware/board/board_config.h"
 #include "firmware/scan/scan_control.h"
 #include "firmware/service/calibration_store.h"
@@ -24,6 +25,7 @@
 namespace httplib {
 struct Request;
 struct Response;
+class ContentReader;
 }  // namespace httplib
 
 namespace mirrorscan::service {
@@ -47,6 +49,14 @@ struct ApiServerOptions {
   // A comment line on a quiet SSE stream: keeps proxies open and finds vanished clients
   // (their listener is dropped at the first failed write).
   std::chrono::milliseconds keepalive_interval{5000};
+  // The web page's static files (index.html, app.js, style.css), served at "/" with no
+  // token (they hold no personal data; every API call the page makes sends it). Empty:
+  // no page.
+  std::filesystem::path web_dir;
+  // The live preview captures at most once per this interval and camera; more viewers
+  // share that frame.
+  std::chrono::milliseconds preview_interval{500};
+  int preview_scale = 2;  // the preview's shrink factor
 };
 
 class ApiServer {
@@ -90,6 +100,15 @@ class ApiServer {
   void HandleGetCalibration(const Request& req, Response& res);
   void HandlePutCalibration(const Request& req, Response& res);
   void HandleCapture(const Request& req, Response& res);
+  void HandlePreview(const Request& req, Response& res);
+  void HandleListResults(const Request& req, Response& res);
+  void HandleGetResult(const Request& req, Response& res);
+  void HandleEmptyResult(const Request& req, Response& res);
+  // Streams the body into the store's upload (the per-name limit applied as it arrives).
+  void HandlePutResult(const Request& req, Response& res, const httplib::ContentReader& read);
+  // The body limit of this request: a result's own (protocol::ResultKind) or max_body_bytes.
+  size_t BodyLimit(const Request& req) const;
+  protocol::ScanSummary Summary(const store::ScanInfo& info) const;
   // Takes a live-stream slot; false (and a 503 sent) when all are taken.
   bool AcquireStream(Response& res);
   // The SHA-256 of a finished archive, computed once per (id, size, mtime).
@@ -114,6 +133,13 @@ class ApiServer {
     std::string sha256;
   };
   std::map<std::string, ShaEntry> sha_cache_;
+  struct PreviewEntry {
+    std::chrono::steady_clock::time_point time;
+    std::string png;
+    size_t peaks = 0;
+  };
+  std::mutex preview_mutex_;  // one capture at a time; held while capturing
+  std::map<std::string, PreviewEntry> preview_cache_;
 };
 
 }  // namespace mirrorscan::service

@@ -33,6 +33,7 @@ struct StoreState {
   // write succeeds. Guarded by mu.
   std::map<std::string, ScanInfo> unsaved;
   std::string unsaved_error;  // the last such write's error
+  uint64_t next_upload = 0;   // guarded by mu; makes concurrent uploads' temp names differ
 };
 
 }  // namespace internal
@@ -43,6 +44,8 @@ constexpr std::string_view kArchiveSuffix = ".mscan";
 constexpr std::string_view kPartialSuffix = ".mscan.partial";
 constexpr std::string_view kMetaSuffix = ".json";
 constexpr std::string_view kTmpSuffix = ".json.tmp";
+constexpr std::string_view kResultsSuffix = ".results";
+constexpr std::string_view kUploadInfix = ".tmp-";
 
 fs::path ArchivePath(const fs::path& dir, const std::string& id) {
   return dir / (id + std::string(kArchiveSuffix));
@@ -52,6 +55,9 @@ fs::path PartialPath(const fs::path& dir, const std::string& id) {
 }
 fs::path MetaPath(const fs::path& dir, const std::string& id) {
   return dir / (id + std::string(kMetaSuffix));
+}
+fs::path ResultsDir(const fs::path& dir, const std::string& id) {
+  return dir / (id + std::string(kResultsSuffix));
 }
 
 [[noreturn]] void ThrowIo(const fs::path& path, const std::string& what, int err = errno) {
@@ -295,6 +301,7 @@ void ApplyRetention(internal::StoreState& state) {
     fs::remove(ArchivePath(state.dir, finished[i]), ec);
     fs::remove(PartialPath(state.dir, finished[i]), ec);
     fs::remove(MetaPath(state.dir, finished[i]), ec);
+    fs::remove_all(ResultsDir(state.dir, finished[i]), ec);
     state.unsaved.erase(finished[i]);
   }
   if (finished.size() > state.options.keep_finished) {
@@ -447,12 +454,17 @@ std::unique_ptr<ScanStore> ScanStore::Open(const fs::path& dir, ScanStoreOptions
   if (ec) ThrowIo(dir, "cannot create data directory", ec.value());
 
   std::set<std::string> ids;
+  std::vector<std::string> results_dirs;
   bool removed = false;
   for (const auto& entry : fs::directory_iterator(dir, ec)) {
     const std::string name = entry.path().filename().string();
     if (EndsWith(name, kTmpSuffix)) {
       fs::remove(entry.path(), ec);
       removed = true;
+      continue;
+    }
+    if (EndsWith(name, kResultsSuffix)) {
+      results_dirs.push_back(name.substr(0, name.size() - kResultsSuffix.size()));
       continue;
     }
     for (std::string_view suffix : {kPartialSuffix, kArchiveSuffix, kMetaSuffix}) {
@@ -487,6 +499,22 @@ std::unique_ptr<ScanStore> ScanStore::Open(const fs::path& dir, ScanStoreOptions
         continue;
       }
       SaveMeta(*state, recovered);
+    }
+  }
+  // Results: a folder whose scan is gone (a deletion cut short) goes; so do uploads that
+  // never committed.
+  for (const std::string& id : results_dirs) {
+    const fs::path folder = ResultsDir(dir, id);
+    if (!IsValidScanId(id) || ids.count(id) == 0 ||
+        (!fs::exists(ArchivePath(dir, id), ec) && !fs::exists(PartialPath(dir, id), ec))) {
+      fs::remove_all(folder, ec);
+      removed = true;
+      continue;
+    }
+    for (const auto& entry : fs::directory_iterator(folder, ec)) {
+      if (entry.path().filename().string().find(kUploadInfix) != std::string::npos) {
+        fs::remove(entry.path(), ec);
+      }
     }
   }
   if (removed) SyncDir(dir);
@@ -624,8 +652,145 @@ void ScanStore::Delete(const std::string& id) {
   }
   found = state_->unsaved.erase(id) > 0 || found;
   if (!found) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+  // After the archive: a deletion cut short here leaves a folder Open removes.
+  std::error_code ec;
+  fs::remove_all(ResultsDir(state_->dir, id), ec);
+  if (ec) ThrowIo(ResultsDir(state_->dir, id), "cannot delete", ec.value());
   SyncDir(state_->dir);
   RetryUnsaved(*state_);  // the space just freed
+}
+
+namespace {
+
+void CheckResultName(const std::string& name) {
+  if (protocol::FindResultKind(name) == nullptr) {
+    std::string names;
+    for (const protocol::ResultKind& kind : protocol::ResultKinds()) {
+      names += (names.empty() ? "" : ", ") + std::string(kind.name);
+    }
+    throw StoreError(StoreError::Kind::kInvalidArgument,
+                     "not a result name: \"" + name + "\" (one of " + names + ")");
+  }
+}
+
+// Caller holds state.mu. Whether the scan has an archive (finished or crash-partial) and
+// is not being written; kNotFound or kBusy otherwise.
+void CheckFinishedScan(const internal::StoreState& state, const std::string& id) {
+  if (state.active.count(id) > 0) {
+    throw StoreError(StoreError::Kind::kBusy, "scan " + id + " is being written");
+  }
+  std::error_code ec;
+  if (!fs::exists(ArchivePath(state.dir, id), ec) && !fs::exists(PartialPath(state.dir, id), ec)) {
+    throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+  }
+}
+
+}  // namespace
+
+ResultUpload::ResultUpload(std::shared_ptr<internal::StoreState> state, std::string id,
+                           std::string name, fs::path temp, int fd)
+    : state_(std::move(state)),
+      id_(std::move(id)),
+      name_(std::move(name)),
+      temp_(std::move(temp)),
+      fd_(fd) {}
+
+ResultUpload::~ResultUpload() {
+  if (fd_ >= 0) ::close(fd_);
+  if (!committed_) ::unlink(temp_.c_str());
+}
+
+void ResultUpload::Append(const char* data, size_t size) {
+  if (fd_ < 0) throw StoreError(StoreError::Kind::kIo, temp_.string() + ": upload already ended");
+  while (size > 0) {
+    const ssize_t n = ::write(fd_, data, size);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd_);
+      fd_ = -1;
+      ThrowIo(temp_, "write", err);
+    }
+    data += n;
+    size -= static_cast<size_t>(n);
+    bytes_ += static_cast<uint64_t>(n);
+  }
+}
+
+void ResultUpload::Commit() {
+  if (fd_ < 0) throw StoreError(StoreError::Kind::kIo, temp_.string() + ": upload already ended");
+  const int fd = fd_;
+  fd_ = -1;
+  if (::fsync(fd) != 0) {
+    const int err = errno;
+    ::close(fd);
+    ThrowIo(temp_, "fsync", err);
+  }
+  if (::close(fd) != 0) ThrowIo(temp_, "close");
+  // Under the lock, so a Delete either ran before (the folder is gone: kNotFound) or
+  // runs after and takes the new file with it.
+  std::lock_guard<std::mutex> lock(state_->mu);
+  CheckFinishedScan(*state_, id_);
+  const fs::path target = ResultsDir(state_->dir, id_) / name_;
+  if (::rename(temp_.c_str(), target.c_str()) != 0) {
+    if (errno == ENOENT) throw StoreError(StoreError::Kind::kNotFound, "no scan " + id_);
+    ThrowIo(target, "rename");
+  }
+  committed_ = true;
+  SyncDir(target.parent_path());
+}
+
+std::unique_ptr<ResultUpload> ScanStore::BeginResult(const std::string& id,
+                                                     const std::string& name) {
+  CheckId(id);
+  CheckResultName(name);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  CheckFinishedScan(*state_, id);
+  const fs::path folder = ResultsDir(state_->dir, id);
+  if (::mkdir(folder.c_str(), 0755) == 0) {
+    SyncDir(state_->dir);
+  } else if (errno != EEXIST) {
+    ThrowIo(folder, "cannot create");
+  }
+  const fs::path temp =
+      folder / (name + std::string(kUploadInfix) + std::to_string(++state_->next_upload));
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) ThrowIo(temp, "cannot create");
+  return std::unique_ptr<ResultUpload>(new ResultUpload(state_, id, name, temp, fd));
+}
+
+std::vector<StoredResult> ScanStore::Results(const std::string& id) const {
+  CheckId(id);
+  std::lock_guard<std::mutex> lock(state_->mu);
+  std::error_code ec;
+  if (state_->active.count(id) == 0 && !fs::exists(ArchivePath(state_->dir, id), ec) &&
+      !fs::exists(PartialPath(state_->dir, id), ec)) {
+    throw StoreError(StoreError::Kind::kNotFound, "no scan " + id);
+  }
+  std::vector<StoredResult> results;
+  const fs::path folder = ResultsDir(state_->dir, id);
+  for (const protocol::ResultKind& kind : protocol::ResultKinds()) {
+    const fs::path file = folder / std::string(kind.name);
+    const auto status = fs::status(file, ec);
+    if (ec || !fs::is_regular_file(status)) continue;
+    StoredResult result;
+    result.name = std::string(kind.name);
+    result.bytes = fs::file_size(file, ec);
+    result.modified = fs::last_write_time(file, ec);
+    if (!ec) results.push_back(std::move(result));
+  }
+  return results;
+}
+
+fs::path ScanStore::ResultPath(const std::string& id, const std::string& name) const {
+  CheckId(id);
+  CheckResultName(name);
+  const fs::path file = ResultsDir(state_->dir, id) / name;
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) {
+    throw StoreError(StoreError::Kind::kNotFound, "scan " + id + " has no result " + name);
+  }
+  return file;
 }
 
 std::string ScanStore::problem() const {

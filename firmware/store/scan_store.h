@@ -7,6 +7,11 @@
 //   <id>.mscan           the archive after Finish
 //   <id>.json            metadata, always replaced atomically (temp, fsync, rename, fsync dir)
 //   <id>.json.tmp        a metadata write in progress; removed by Open
+//   <id>.results/<name>  the host's processed results (protocol::ResultKinds: mesh.ply,
+//                        previews, measurements.json, summary.json), each replaced
+//                        atomically; deleted with the scan
+//   <id>.results/<name>.tmp-N  an upload in progress; removed by Open (as is a results
+//                        folder whose scan is gone)
 //
 // States in the metadata: "writing" (a handle is open), "complete", "aborted", "fault"
 // (finished archives: the footer's status), "partial" (never finished: a crash, an
@@ -89,6 +94,41 @@ namespace internal {
 struct StoreState;
 }
 
+// A stored result of a scan.
+struct StoredResult {
+  std::string name;
+  uint64_t bytes = 0;
+  std::filesystem::file_time_type modified;
+};
+
+// One result being uploaded into a temp file beside the others. Destroying it without
+// Commit removes the temp file; the stored result (if any) is untouched until Commit.
+class ResultUpload {
+ public:
+  ~ResultUpload();
+  ResultUpload(const ResultUpload&) = delete;
+  ResultUpload& operator=(const ResultUpload&) = delete;
+
+  void Append(const char* data, size_t size);  // kIo (disk full: the upload is failed)
+  // fsync, rename over <id>.results/<name>, fsync the folder. kNotFound when the scan was
+  // deleted meanwhile, kIo.
+  void Commit();
+  uint64_t bytes() const { return bytes_; }
+
+ private:
+  friend class ScanStore;
+  ResultUpload(std::shared_ptr<internal::StoreState> state, std::string id, std::string name,
+               std::filesystem::path temp, int fd);
+
+  std::shared_ptr<internal::StoreState> state_;
+  std::string id_;
+  std::string name_;
+  std::filesystem::path temp_;
+  int fd_;
+  uint64_t bytes_ = 0;
+  bool committed_ = false;
+};
+
 // One scan being written. Destroying it without Finish (or after an error) keeps the
 // .partial archive and marks it "partial" with the recovery report, best effort; a real
 // crash leaves the same for the next Open to mark.
@@ -145,8 +185,17 @@ class ScanStore {
   ScanInfo Get(const std::string& id) const;  // kInvalidId, kNotFound
   // The archive to download: .mscan, or .mscan.partial while writing or after a crash.
   std::filesystem::path Path(const std::string& id) const;
-  // Removes archive and metadata. kBusy while the scan is being written.
+  // Removes archive, metadata and results. kBusy while the scan is being written.
   void Delete(const std::string& id);
+
+  // Starts storing result `name` (protocol::FindResultKind) of a finished scan.
+  // kInvalidId, kInvalidArgument for a name not on the list, kNotFound, kBusy while the
+  // scan is being written, kIo.
+  std::unique_ptr<ResultUpload> BeginResult(const std::string& id, const std::string& name);
+  // The scan's stored results, in protocol::ResultKinds order. kInvalidId, kNotFound.
+  std::vector<StoredResult> Results(const std::string& id) const;
+  // The file of one stored result. kInvalidId, kInvalidArgument, kNotFound.
+  std::filesystem::path ResultPath(const std::string& id, const std::string& name) const;
 
   const std::filesystem::path& dir() const;
   // Empty, or why some metadata lives only in memory (the disk was full); retried after

@@ -406,5 +406,138 @@ TEST_F(ScanStoreTest, OrphanMetadataIsRemovedAndArchivesWithoutMetadataAreListed
   EXPECT_EQ(info.frames, 2u);
 }
 
+std::string ReadAll(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+void PutResult(ScanStore& store, const std::string& id, const std::string& name,
+               const std::string& content) {
+  auto upload = store.BeginResult(id, name);
+  // In two pieces, as the server appends what arrives.
+  upload->Append(content.data(), content.size() / 2);
+  upload->Append(content.data() + content.size() / 2, content.size() - content.size() / 2);
+  upload->Commit();
+}
+
+TEST_F(ScanStoreTest, ResultsAreStoredBesideTheScanListedAndReplacedWhole) {
+  auto store = ScanStore::Open(dir_);
+  const std::string id = WriteScan(*store, 2);
+  EXPECT_TRUE(store->Results(id).empty());
+  PutResult(*store, id, "summary.json", R"({"ok": true})");
+  PutResult(*store, id, "mesh.ply", std::string(100000, 'm'));
+  const std::vector<StoredResult> results = store->Results(id);
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[0].name, "mesh.ply");  // protocol::ResultKinds order
+  EXPECT_EQ(results[0].bytes, 100000u);
+  EXPECT_EQ(results[1].name, "summary.json");
+  EXPECT_EQ(store->ResultPath(id, "mesh.ply"), dir_ / (id + ".results") / "mesh.ply");
+  EXPECT_EQ(ReadAll(store->ResultPath(id, "summary.json")), R"({"ok": true})");
+
+  // An upload in progress leaves the stored file as it was; a dropped one leaves nothing.
+  {
+    auto upload = store->BeginResult(id, "summary.json");
+    upload->Append("{\"ok\"", 5);
+    EXPECT_EQ(ReadAll(store->ResultPath(id, "summary.json")), R"({"ok": true})");
+  }
+  EXPECT_EQ(ReadAll(store->ResultPath(id, "summary.json")), R"({"ok": true})");
+  PutResult(*store, id, "summary.json", R"({"ok": false})");
+  EXPECT_EQ(ReadAll(store->ResultPath(id, "summary.json")), R"({"ok": false})");
+  size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(dir_ / (id + ".results"))) {
+    (void)entry;
+    ++files;
+  }
+  EXPECT_EQ(files, 2u);  // no temp files left
+}
+
+TEST_F(ScanStoreTest, ResultNamesAreAFixedListAndScansMustBeFinished) {
+  auto store = ScanStore::Open(dir_);
+  const std::string id = WriteScan(*store, 1);
+  for (const char* bad :
+       {"points.ply", "../x.json", "mesh.ply/", "", "MESH.PLY", "summary.json.tmp-1", "mesh.obj"}) {
+    try {
+      store->BeginResult(id, bad);
+      ADD_FAILURE() << bad;
+    } catch (const StoreError& e) {
+      EXPECT_EQ(e.kind(), StoreError::Kind::kInvalidArgument) << bad;
+    }
+  }
+  try {
+    store->BeginResult("../" + id, "mesh.ply");
+    ADD_FAILURE();
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind(), StoreError::Kind::kInvalidId);
+  }
+  try {
+    store->BeginResult("20000101T000000Z-0001", "mesh.ply");
+    ADD_FAILURE();
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind(), StoreError::Kind::kNotFound);
+  }
+  auto writing = store->BeginScan({{"device", "test"}});
+  try {
+    store->BeginResult(writing->id(), "mesh.ply");
+    ADD_FAILURE();
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind(), StoreError::Kind::kBusy);
+  }
+  try {
+    store->ResultPath(id, "mesh.ply");
+    ADD_FAILURE();
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind(), StoreError::Kind::kNotFound);
+  }
+  EXPECT_FALSE(fs::exists(dir_ / (writing->id() + ".results")));
+}
+
+TEST_F(ScanStoreTest, ResultsGoWithTheScanAndAnUploadRacingADeleteFails) {
+  auto store = ScanStore::Open(dir_);
+  const std::string id = WriteScan(*store, 1);
+  PutResult(*store, id, "mesh.ply", "ply");
+  auto late = store->BeginResult(id, "summary.json");
+  late->Append("{}", 2);
+  store->Delete(id);
+  EXPECT_FALSE(fs::exists(dir_ / (id + ".results")));
+  try {
+    late->Commit();
+    ADD_FAILURE();
+  } catch (const StoreError& e) {
+    EXPECT_EQ(e.kind(), StoreError::Kind::kNotFound);
+  }
+  EXPECT_FALSE(fs::exists(dir_ / (id + ".results")));
+}
+
+TEST_F(ScanStoreTest, OpenRemovesOrphanResultsAndUnfinishedUploads) {
+  std::string kept, deleted;
+  {
+    auto store = ScanStore::Open(dir_);
+    kept = WriteScan(*store, 1);
+    deleted = WriteScan(*store, 1);
+    PutResult(*store, kept, "mesh.ply", "ply");
+    PutResult(*store, deleted, "mesh.ply", "ply");
+  }
+  // A deletion cut short after the archive went; an upload cut short by a crash.
+  fs::remove(dir_ / (deleted + ".mscan"));
+  fs::remove(dir_ / (deleted + ".json"));
+  { std::ofstream(dir_ / (kept + ".results") / "summary.json.tmp-7") << "{"; }
+  auto store = ScanStore::Open(dir_);
+  EXPECT_FALSE(fs::exists(dir_ / (deleted + ".results")));
+  EXPECT_FALSE(fs::exists(dir_ / (kept + ".results") / "summary.json.tmp-7"));
+  EXPECT_EQ(ReadAll(store->ResultPath(kept, "mesh.ply")), "ply");
+}
+
+TEST_F(ScanStoreTest, RetentionTakesTheResultsWithTheScan) {
+  ScanStoreOptions options;
+  options.keep_finished = 1;
+  auto store = ScanStore::Open(dir_, options);
+  const std::string old_id = WriteScan(*store, 1);
+  PutResult(*store, old_id, "mesh.ply", "ply");
+  WriteScan(*store, 1);
+  EXPECT_FALSE(fs::exists(dir_ / (old_id + ".results")));
+}
+
 }  // namespace
 }  // namespace mirrorscan::store

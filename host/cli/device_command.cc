@@ -1,5 +1,7 @@
 #include "host/cli/device_command.h"
 
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -9,14 +11,17 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "common/protocol/protocol.h"
 #include "host/cli/device_discovery.h"
+#include "host/cli/exit_status.h"
 #include "host/client/device_client.h"
 
 namespace mirrorscan::cli {
@@ -38,6 +43,10 @@ struct DeviceOptions {
   bool lasers_on = false;
   std::string calibration_file;
   double discover_seconds = 2.0;
+  // watch
+  bool process = false;
+  std::string board;
+  int count = 0;  // scans to handle before exiting; 0: until stopped
 };
 
 client::DeviceClient Connect(const DeviceOptions& o) {
@@ -274,6 +283,129 @@ void Capture(const DeviceOptions& o) {
   std::printf("%s\n", out.c_str());
 }
 
+// `mirrorscan process ARCHIVE --calibration C --out DIR --upload HOST` as a child: the
+// stateless batch job, in its own process (a crash in meshing never ends the watch). The
+// token reaches it in the environment, never on a command line others can read.
+int RunProcess(const DeviceOptions& o, const fs::path& archive, const fs::path& out) {
+  std::vector<std::string> args = {"mirrorscan",    "process",          archive.string(),
+                                   "--calibration", o.calibration_file, "--out",
+                                   out.string(),    "--upload",         o.host};
+  if (!o.board.empty()) {
+    args.push_back("--board");
+    args.push_back(o.board);
+  }
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  std::vector<std::string> env_strings;
+  const std::string token_var(protocol::kTokenEnvironmentVariable);
+  for (char** e = environ; *e != nullptr; ++e) {
+    if (std::string(*e).rfind(token_var + "=", 0) != 0) env_strings.push_back(*e);
+  }
+  env_strings.push_back(token_var + "=" + o.token);
+  std::vector<char*> envp;
+  for (std::string& e : env_strings) envp.push_back(e.data());
+  envp.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, "/proc/self/exe", nullptr, nullptr, argv.data(), envp.data()) != 0) {
+    throw std::runtime_error("watch: cannot start mirrorscan process");
+  }
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+// One finished scan: fetched (retried while the device still finishes it), then processed
+// and uploaded when asked. Returns the line (or JSON) that reports it.
+json HandleFinishedScan(const DeviceOptions& o, client::DeviceClient& device,
+                        const std::string& id) {
+  const fs::path archive = fs::path(o.out) / (id + ".mscan");
+  json report = {{"id", id}};
+  client::FetchResult fetched;
+  for (int attempt = 0;; ++attempt) {
+    try {
+      fetched = device.Fetch(id, archive);
+      break;
+    } catch (const client::DeviceError& e) {
+      // 409: the archive is still being closed; a connection error: the device restarts.
+      if ((e.status() != 409 && e.status() != 0) || attempt >= 20) throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    }
+  }
+  report.update(FetchJson(id, fetched));
+  if (o.process) {
+    const fs::path out = fs::path(o.out) / id;
+    const int status = RunProcess(o, archive, out);
+    report["process_exit"] = status;
+    report["results"] = out.string();
+  }
+  return report;
+}
+
+void Watch(const DeviceOptions& o) {
+  if (o.process && o.calibration_file.empty()) {
+    throw CommandExit(kExitUsage, "watch --process needs --calibration C.json");
+  }
+  std::error_code ec;
+  fs::create_directories(o.out, ec);
+  if (!fs::is_directory(o.out, ec)) {
+    throw CommandExit(kExitUsage, "--out " + o.out + ": cannot create the directory");
+  }
+  client::DeviceClientOptions client_options;
+  client_options.read_timeout = std::chrono::seconds(30);  // keep-alives come every 5 s
+  client::DeviceClient device(o.host, o.token, client_options);
+  std::set<std::string> handled;
+  int done = 0;
+  bool stop = false;
+  std::fprintf(stderr, "watch: following %s; finished scans go to %s\n", o.host.c_str(),
+               o.out.c_str());
+  auto on_event = [&](const protocol::ScanEventMessage& e) {
+    const protocol::ScanProgress& p = e.scan;
+    if (p.scan_id.empty() || handled.count(p.scan_id) > 0 || !IsEndState(p.state)) return true;
+    handled.insert(p.scan_id);
+    // A scan that ended before the watch began and was fetched here already is not redone.
+    if (p.state == "done" && e.type == "state" && done == 0 &&
+        fs::exists(fs::path(o.out) / (p.scan_id + ".mscan"))) {
+      return true;
+    }
+    json report;
+    if (p.state != "done") {
+      report = {{"id", p.scan_id}, {"state", p.state}, {"reason", p.reason}};
+      std::fprintf(stderr, "watch: scan %s ended %s%s; not fetched\n", p.scan_id.c_str(),
+                   p.state.c_str(), p.reason.empty() ? "" : (": " + p.reason).c_str());
+    } else {
+      report = HandleFinishedScan(o, device, p.scan_id);
+      report["state"] = "done";
+      std::fprintf(stderr, "watch: scan %s fetched (%s)%s\n", p.scan_id.c_str(),
+                   Megabytes(report["bytes"]).c_str(),
+                   !o.process ? ""
+                   : report["process_exit"] == 0
+                       ? ", processed and uploaded"
+                       : (", process exit " + report["process_exit"].dump()).c_str());
+    }
+    if (o.json) {
+      std::cout << report.dump() << std::endl;
+    } else if (report.contains("path")) {
+      std::cout << report["path"].get<std::string>() << std::endl;
+    }
+    ++done;
+    stop = o.count > 0 && done >= o.count;
+    return !stop;
+  };
+  for (int failures = 0; !stop;) {
+    try {
+      device.Events(on_event);
+    } catch (const client::DeviceError& e) {
+      // A dropped stream (the device restarted, the network blinked): follow again; a
+      // refusal (401/403, 404) ends the watch.
+      if (e.status() != 0 && e.status() != 503 && e.status() != 429) throw;
+      if (++failures % 10 == 1) std::fprintf(stderr, "watch: %s; retrying\n", e.what());
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+    }
+  }
+}
+
 void Discover(const DeviceOptions& o) {
   const std::vector<DiscoveredDevice> devices = DiscoverDevices(o.discover_seconds);
   if (o.json) {
@@ -385,6 +517,22 @@ void AddDeviceCommands(CLI::App& app) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   discover->callback([options] { Discover(*options); });
+
+  auto* watch = device->add_subcommand(
+      "watch",
+      "Follow the device's events; fetch each scan that finishes into --out, and with "
+      "--process reconstruct, mesh, measure and upload the results to the device");
+  watch->add_option("--out", options->out, "folder for the archives (and results)")->required();
+  watch->add_flag("--process", options->process,
+                  "run `mirrorscan process ... --upload` on each fetched scan into OUT/ID/");
+  watch->add_option("--calibration", options->calibration_file, "calibration.json for --process")
+      ->check(CLI::ExistingFile);
+  watch->add_option("--board", options->board, "board.json for --process (bounding cylinder)")
+      ->check(CLI::ExistingFile);
+  watch->add_option("--count", options->count, "exit after this many scans ended (0: never)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  watch->callback([options] { Watch(*options); });
 }
 
 }  // namespace mirrorscan::cli

@@ -7,9 +7,11 @@ namespace mirrorscan::cli {
 
 // Exit statuses of `mirrorscan` (docs/meshing.md): 0 done, 1 the input cannot give the
 // result (the reason on stderr), 2 usage (bad options, an input file that is missing or
-// is not what it should be).
+// is not what it should be), 3 `process --upload`: the results are in the folder but the
+// device did not take them.
 inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
+inline constexpr int kExitUpload = 3;
 
 // Thrown by a command to end with a given status; main prints what() as one line.
 class CommandExit : public std::runtime_error {

@@ -17,14 +17,16 @@
 
 #include "common/config/calibration.h"
 #include "common/config/json_reader.h"
+#include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "host/cli/exit_status.h"
 #include "host/cli/mesh_command.h"
 #include "host/cli/progress.h"
-#include "host/meshing/meshing.h"
+#include "host/client/device_client.h"
 #include "host/measurement/measure.h"
 #include "host/measurement/preview.h"
+#include "host/meshing/meshing.h"
 #include "host/meshing/preview.h"
 #include "host/reconstruction/reconstruct.h"
 
@@ -45,6 +47,8 @@ struct ProcessOptions {
   bool no_previews = false;
   int preview_height = 900;
   bool json = false;
+  std::string upload;  // host:port of the device to put the results on
+  std::string token;
 };
 
 // Everything `process` writes; removed first so a failed run leaves no stale result
@@ -125,6 +129,58 @@ void CheckViews(const reconstruction::ReconstructSummary& summary) {
   }
 }
 
+// Puts the folder's results on the device the scan came from: every file of
+// protocol::ResultKinds that this run wrote, summary.json last (the device's page takes a
+// summary as "processed"). A failed run sends its summary.json alone (the reason).
+void Upload(const ProcessOptions& o, const fs::path& out, const nlohmann::json& summary) {
+  const std::string id = summary.value("scan_id", "");
+  if (!protocol::IsValidScanId(id)) {
+    throw CommandExit(kExitUpload, "--upload: the archive names no device scan id (\"" + id +
+                                       "\"); was it fetched from a device?");
+  }
+  std::vector<std::string> names;
+  if (summary.value("ok", false)) {
+    for (const protocol::ResultKind& kind : protocol::ResultKinds()) {
+      if (kind.name != "summary.json" && fs::is_regular_file(out / std::string(kind.name))) {
+        names.push_back(std::string(kind.name));
+      }
+    }
+  }
+  names.push_back("summary.json");
+  try {
+    client::DeviceClient device(o.upload, o.token);
+    for (const std::string& name : names) device.PutResult(id, name, out / name);
+  } catch (const client::DeviceError& e) {
+    throw CommandExit(kExitUpload, std::string("--upload: ") + e.what());
+  }
+  std::fprintf(stderr, "process: %zu result(s) of %s uploaded to %s\n", names.size(), id.c_str(),
+               o.upload.c_str());
+}
+
+// Before the minutes of processing: the device answers, has this scan, and takes the token
+// (on a board with open reads a wrong token shows only at the upload).
+void CheckUploadTarget(const ProcessOptions& o, const std::string& id) {
+  if (!protocol::IsValidScanId(id)) {
+    throw CommandExit(kExitUpload, "--upload: the archive names no device scan id (\"" + id +
+                                       "\"); was it fetched from a device?");
+  }
+  try {
+    client::DeviceClient(o.upload, o.token).Get(id);
+  } catch (const client::DeviceError& e) {
+    throw CommandExit(kExitUpload, std::string("--upload: ") + e.what() + "; nothing processed");
+  }
+}
+
+// After a failed run: the failure is what the exit status reports, the upload's own
+// trouble only a warning.
+void UploadFailure(const ProcessOptions& o, const fs::path& out, const nlohmann::json& summary) {
+  try {
+    Upload(o, out, summary);
+  } catch (const CommandExit& e) {
+    std::fprintf(stderr, "process: warning: %s\n", e.what());
+  }
+}
+
 void Run(const ProcessOptions& o) {
   const auto start = Clock::now();
   const std::vector<std::string> formats = ParseFormats(o.formats);
@@ -202,6 +258,7 @@ void Run(const ProcessOptions& o) {
             ? archive.header.value("scan_id", fs::path(o.scan).stem().string())
             : fs::path(o.scan).stem().string();
     summary["scan_id"] = scan_id;
+    if (!o.upload.empty()) CheckUploadTarget(o, scan_id);
     summary["archive"] = {{"complete", archive.report.complete},
                           {"frames", archive.report.frames},
                           {"peaks", archive.report.peaks},
@@ -346,12 +403,16 @@ void Run(const ProcessOptions& o) {
     timings["measurements"] = SecondsSince(stage_start);
   } catch (const CommandExit& e) {
     finish(false, e.what());
+    // The device shows why its scan gave nothing (not for usage errors: no scan id).
+    if (!o.upload.empty() && e.status() == kExitFailure) UploadFailure(o, out, summary);
     throw;
   } catch (const std::exception& e) {
     finish(false, e.what());
+    if (!o.upload.empty()) UploadFailure(o, out, summary);
     throw CommandExit(kExitFailure, e.what());
   }
   finish(true, "");
+  if (!o.upload.empty()) Upload(o, out, summary);
   if (o.json) {
     std::printf("%s\n", summary.dump(2).c_str());
     return;
@@ -392,6 +453,11 @@ void AddProcessCommand(CLI::App& app) {
       ->capture_default_str();
   AddMeshingFlags(cmd, &options->meshing);
   cmd->add_flag("--json", options->json, "print summary.json on stdout");
+  cmd->add_option("--upload", options->upload,
+                  "put the results (mesh.ply, previews, measurements.json, summary.json) on "
+                  "the device at host:port that recorded the scan (exit 3 if it refuses)");
+  cmd->add_option("--token", options->token, "the device's bearer token for --upload")
+      ->envname(std::string(protocol::kTokenEnvironmentVariable));
   cmd->callback([options] { Run(*options); });
 }
 

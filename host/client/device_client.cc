@@ -340,6 +340,54 @@ std::string DeviceClient::Capture(const std::string& camera, bool lasers_on) {
   });
 }
 
+void DeviceClient::PutResult(const std::string& id, const std::string& name, const fs::path& file) {
+  if (!protocol::IsValidScanId(id)) throw DeviceError(0, "usage", "not a scan id: " + id);
+  if (protocol::FindResultKind(name) == nullptr) {
+    throw DeviceError(0, "usage", "not a result name: " + name);
+  }
+  std::error_code ec;
+  const uint64_t size = fs::file_size(file, ec);
+  if (ec) throw DeviceError(0, "io", "cannot read " + file.string());
+  auto in = std::make_shared<std::ifstream>(file, std::ios::binary);
+  if (!*in) throw DeviceError(0, "io", "cannot read " + file.string());
+  const std::string what = "upload " + name + " of " + id;
+  Expect2xx(host_port_, what, [&] {
+    // Streamed from the file with its length: the device checks the size before reading.
+    return http_->client.Put(
+        kApi + "/scans/" + id + "/results/" + name, static_cast<size_t>(size),
+        [in](size_t offset, size_t length, httplib::DataSink& sink) {
+          std::vector<char> buffer(std::min<size_t>(length, 1 << 16));
+          in->seekg(static_cast<std::streamoff>(offset));
+          in->read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+          const std::streamsize n = in->gcount();
+          if (n <= 0) return false;
+          return sink.write(buffer.data(), static_cast<size_t>(n));
+        },
+        "application/octet-stream");
+  });
+}
+
+std::vector<protocol::ResultInfo> DeviceClient::Results(const std::string& id) {
+  if (!protocol::IsValidScanId(id)) throw DeviceError(0, "usage", "not a scan id: " + id);
+  const std::string body = Expect2xx(host_port_, "results of " + id, [&] {
+    return http_->client.Get(kApi + "/scans/" + id + "/results");
+  });
+  try {
+    return ParseJson(body, "results").at("results").get<std::vector<protocol::ResultInfo>>();
+  } catch (const json::exception& e) {
+    throw DeviceError(0, "protocol", std::string("results: unexpected answer: ") + e.what());
+  }
+}
+
+std::string DeviceClient::GetResult(const std::string& id, const std::string& name) {
+  if (!protocol::IsValidScanId(id)) throw DeviceError(0, "usage", "not a scan id: " + id);
+  if (protocol::FindResultKind(name) == nullptr) {
+    throw DeviceError(0, "usage", "not a result name: " + name);
+  }
+  return Expect2xx(host_port_, name + " of " + id,
+                   [&] { return http_->client.Get(kApi + "/scans/" + id + "/results/" + name); });
+}
+
 void DeviceClient::Events(const std::function<bool(const protocol::ScanEventMessage&)>& on_event) {
   std::string pending;
   int status = 0;

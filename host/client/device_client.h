@@ -86,6 +86,11 @@ class DeviceClient {
   std::string PutCalibration(const std::string& text);  // returns the stored SHA-256
   // One raw frame as binary PGM.
   std::string Capture(const std::string& camera, bool lasers_on);
+  // Stores `file` as the scan's result `name` (protocol::ResultKinds; needs the token).
+  // DeviceError 400 (content), 404 (no such scan or name), 409, 413.
+  void PutResult(const std::string& id, const std::string& name, const std::filesystem::path& file);
+  std::vector<protocol::ResultInfo> Results(const std::string& id);
+  std::string GetResult(const std::string& id, const std::string& name);
   // Calls `on_event` for each server-sent event until it returns false.
   void Events(const std::function<bool(const protocol::ScanEventMessage&)>& on_event);
 
