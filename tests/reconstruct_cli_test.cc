@@ -66,7 +66,7 @@ TEST(ReconstructCli, WritesThePlyAndTheSummary) {
                                         " --out " + (d / "points2.ply").string(),
                                     d);
   ASSERT_EQ(text.exit_code, 0) << text.err;
-  EXPECT_NE(text.out.find("decided by cylinder"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("decided by stereo"), std::string::npos) << text.out;
   EXPECT_NE(text.err.find("reconstruct: triangulation"), std::string::npos) << text.err;
 }
 

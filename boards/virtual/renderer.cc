@@ -114,6 +114,26 @@ void ParallelRows(int rows, const std::function<void(int begin, int end)>& work)
 
 }  // namespace
 
+const char* MaterialName(Material material) {
+  switch (material) {
+    case Material::kFloor:
+      return "floor";
+    case Material::kPanel:
+      return "panel";
+    case Material::kMirror:
+      return "mirror";
+    case Material::kSubject:
+      return "subject";
+    case Material::kTarget:
+      return "target";
+    case Material::kChessboard:
+      return "chessboard";
+    case Material::kNone:
+      break;
+  }
+  return "none";
+}
+
 const char* ViewName(View view) {
   switch (view) {
     case View::kCenter:

@@ -31,6 +31,7 @@ const char* ViewName(View view);
 std::vector<int> MirrorPath(View view);
 
 enum class Material : uint8_t { kNone, kFloor, kPanel, kMirror, kSubject, kTarget, kChessboard };
+const char* MaterialName(Material material);
 
 struct SurfaceSample {
   View view = View::kNone;

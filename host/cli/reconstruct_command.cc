@@ -24,8 +24,11 @@ struct ReconstructCliOptions {
   bool no_smooth = false;
   bool no_outliers = false;
   bool drop_stripe_ends = false;
-  bool every_camera = false;
+  double prefer_camera = -1;
   bool icp = false;
+  bool no_stereo = false;
+  double core_radius_mm = -1;
+  double stereo_max_mm = -1;
   double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
   double min_angle_deg = -1;
 };
@@ -39,6 +42,11 @@ void Run(const ReconstructCliOptions& o) {
   reconstruction::ReconstructOptions options;
   if (!o.board.empty()) options.cylinder = reconstruction::BoundingCylinder::FromBoard(o.board);
   if (o.radius_mm > 0) options.cylinder.radius_mm = o.radius_mm;
+  if (o.core_radius_mm > 0) {
+    if (o.core_radius_mm > options.cylinder.radius_mm)
+      throw std::runtime_error("--cylinder-core-radius must not exceed the cylinder's radius");
+    options.cylinder.core_radius_mm = o.core_radius_mm;
+  }
   if (o.bottom_mm > -1e9) options.cylinder.bottom_mm = o.bottom_mm;
   if (o.top_mm > -1e9) options.cylinder.top_mm = o.top_mm;
   if (options.cylinder.top_mm <= options.cylinder.bottom_mm)
@@ -50,8 +58,10 @@ void Run(const ReconstructCliOptions& o) {
   options.smooth_3x3 = !o.no_smooth;
   options.remove_outliers = !o.no_outliers;
   options.drop_stripe_ends = o.drop_stripe_ends;
-  if (o.every_camera) options.prefer_camera_ratio = 0;
+  if (o.prefer_camera >= 0) options.prefer_camera_ratio = o.prefer_camera;
   options.icp = o.icp;
+  options.stereo = !o.no_stereo;
+  if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
     if (o.json) return;
@@ -95,7 +105,10 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--out", o->out, "points.ply to write")->required();
   cmd->add_option("--board", o->board, "board.json whose reconstruction.bounding_cylinder to use")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--cylinder-radius", o->radius_mm, "Bounding cylinder radius, mm (default 450)");
+  cmd->add_option("--cylinder-radius", o->radius_mm,
+                  "Bounding cylinder radius, mm: no point beyond it (default 650)");
+  cmd->add_option("--cylinder-core-radius", o->core_radius_mm,
+                  "Its core, mm: one hypothesis there decides a peak alone (default 450)");
   cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 20)");
   cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
   cmd->add_option("--min-angle", o->min_angle_deg,
@@ -109,8 +122,13 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_flag("--no-outliers", o->no_outliers, "Keep statistical outliers");
   cmd->add_flag("--drop-stripe-ends", o->drop_stripe_ends,
                 "Drop the last 2 columns of every stripe (they only get a low confidence)");
-  cmd->add_flag("--every-camera", o->every_camera,
-                "Keep every camera's points, also where another sees the place at a better angle");
+  cmd->add_option("--prefer-camera", o->prefer_camera,
+                  "Drop a camera's points where another meets the laser planes this many times "
+                  "more squarely (default 0: keep every camera's)");
+  cmd->add_flag("--no-stereo", o->no_stereo,
+                "Do not decide laser and view by what the other camera sees");
+  cmd->add_option("--stereo-max-mm", o->stereo_max_mm,
+                  "How near another camera's point of the same laser must be, mm (default 3)");
   cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");
   cmd->add_flag("--json", o->json, "Print the summary as JSON (no progress)");
   cmd->callback([o] { Run(*o); });

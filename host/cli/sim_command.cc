@@ -80,10 +80,10 @@ void WriteTruthCsv(std::ostream& out, int frame, const std::vector<TruthPeak>& p
   for (const auto& p : peaks) {
     out << frame << ',' << p.u << ',' << p.v << ',' << p.laser << ',' << ViewName(p.view) << ','
         << p.point_in_world.x() << ',' << p.point_in_world.y() << ',' << p.point_in_world.z() << ','
-        << p.peak_dn << '\n';
+        << p.peak_dn << ',' << MaterialName(p.material) << '\n';
   }
 }
-constexpr const char* kTruthHeader = "frame,u,v,laser,view,x_mm,y_mm,z_mm,peak_dn\n";
+constexpr const char* kTruthHeader = "frame,u,v,laser,view,x_mm,y_mm,z_mm,peak_dn,material\n";
 
 Scene LoadScene(const SimOptions& o) {
   Scene scene = Scene::Load(o.scene_path);

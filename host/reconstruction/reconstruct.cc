@@ -44,9 +44,11 @@ struct Hypothesis {
   Eigen::Vector3d last_direction;  // the ray's last segment (towards the point)
   float sin_angle = 0;             // ray against the laser plane
   uint8_t key = 0;
+  bool confirmed = false;  // another camera saw this laser there too
+  bool floor = false;      // on the floor below the cylinder: never a point of the subject
 };
 
-enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote };
+enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote, kStereo };
 
 struct PeakState {
   uint32_t frame = 0;  // archive frame index
@@ -387,11 +389,11 @@ struct Geometry {
   std::vector<PlanarRectangle> mirror_rectangles;  // empty without corners
 };
 
-// Every (view, laser) this peak could be, inside the bounding cylinder.
+// Every (view, laser) this peak could be, inside the bounding cylinder (or on the floor).
 void Hypothesize(const Geometry& g, const FrameRecord& frame,
                  const std::array<Plane, kMaxLasers>& planes, int laser_count,
-                 const BoundingCylinder& cylinder, const std::optional<Ray3d>& ray, PeakState* peak,
-                 std::vector<Hypothesis>* out) {
+                 const BoundingCylinder& cylinder, double mirror_clearance_mm,
+                 const std::optional<Ray3d>& ray, PeakState* peak, std::vector<Hypothesis>* out) {
   const Eigen::Vector2d pixel(peak->u, peak->v);
   peak->first_hypothesis = static_cast<uint32_t>(out->size());
   if (!ray) {
@@ -411,12 +413,19 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
       const auto t = IntersectRayPlane(segment, planes[k], 1.0);
       if (!t || *t >= t_max) continue;
       const Eigen::Vector3d point = segment.At(*t);
-      // Inside the bounding cylinder, and in front of both mirrors: nothing is lit behind
-      // them (a ray reflected past the other mirror's edge would otherwise go on outside).
-      if (!cylinder.Contains(point) || g.mirrors[0].SignedDistance(point) < 0 ||
-          g.mirrors[1].SignedDistance(point) < 0)
+      // Inside the bounding cylinder and clear of both mirrors: nothing is lit behind them
+      // (a ray reflected past the other mirror's edge would otherwise go on outside), and
+      // near a mirror's glass every camera's reflected rays run close together, so phantom
+      // points there would confirm each other. A laser at the floor's height lights the
+      // floor, which runs on under the mirrors' feet: that must be a way the peak can have
+      // come about, or another laser would take the floor's stripe into the volume.
+      const bool floor = !cylinder.Contains(point) && cylinder.OnFloor(point);
+      if (!floor &&
+          (!cylinder.Contains(point) || g.mirrors[0].SignedDistance(point) < mirror_clearance_mm ||
+           g.mirrors[1].SignedDistance(point) < mirror_clearance_mm))
         continue;
       Hypothesis h;
+      h.floor = floor;
       h.point = point;
       h.last_direction = segment.direction;
       h.sin_angle = static_cast<float>(std::abs(planes[k].normal.dot(segment.direction)));
@@ -578,12 +587,62 @@ class AngleGrid {
   std::vector<std::vector<float>> cells_;
 };
 
+// A peak decided on its own: its one hypothesis; else the one another camera confirms; else
+// the one inside the cylinder's core among those confirmed (or among all, none confirmed).
+void DecideAlone(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& hyp,
+                 const BoundingCylinder& cylinder) {
+  const auto is_direct = [](const Hypothesis& x) {
+    return x.key / kMaxLasers == static_cast<int>(PointView::kCenter);
+  };
+  for (PeakState& p : *peaks) {
+    if (p.hypotheses == 0) continue;
+    const Hypothesis* first = &hyp[p.first_hypothesis];
+    if (p.hypotheses == 1) {
+      p.chosen = 0;
+      p.rule = Rule::kCylinder;
+      continue;
+    }
+    int confirmed = 0, last_confirmed = -1;
+    for (int h = 0; h < p.hypotheses; ++h) {
+      if (first[h].confirmed) {
+        ++confirmed;
+        last_confirmed = h;
+      }
+    }
+    if (confirmed == 1) {
+      p.chosen = static_cast<int16_t>(last_confirmed);
+      p.rule = Rule::kStereo;
+      continue;
+    }
+    // The floor is a surface too: a floor hypothesis leaves the core no single answer.
+    int in_core = 0, last_in_core = -1;
+    for (int h = 0; h < p.hypotheses; ++h) {
+      if ((confirmed == 0 || first[h].confirmed) &&
+          (first[h].floor || cylinder.CoreContains(first[h].point))) {
+        ++in_core;
+        last_in_core = h;
+      }
+    }
+    if (in_core != 1) continue;
+    // The direct ray in a mirror's region meets the other lasers' planes in the air beside
+    // whatever stands in front of the mirror, often inside the core: no proof while the
+    // mirror's view has a hypothesis further out (a hand seen in the mirror).
+    if (p.region != 0 && is_direct(first[last_in_core]) &&
+        std::any_of(first, first + p.hypotheses,
+                    [&](const Hypothesis& x) { return !is_direct(x); }))
+      continue;
+    p.chosen = static_cast<int16_t>(last_in_core);
+    p.rule = Rule::kCylinder;
+  }
+}
+
 // Peaks the cylinder left ambiguous with exactly one hypothesis in the carved volume.
 void DecideByVolume(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& hyp,
                     const BoundingCylinder& cylinder) {
   Occupancy occupied(cylinder);
   for (const PeakState& p : *peaks)
-    if (p.rule == Rule::kCylinder) occupied.Add(hyp[p.first_hypothesis].point);
+    if (p.rule == Rule::kCylinder || p.rule == Rule::kStereo)
+      occupied.Add(hyp[p.first_hypothesis + p.chosen].point);
   for (PeakState& p : *peaks) {
     if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
     int found = -1, count = 0;
@@ -681,10 +740,160 @@ PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_fr
   return table;
 }
 
+// Each frame's hypotheses of one laser by the 2D cell of their point (the laser plane gives
+// the height), so another camera's hypotheses near a point are a few binary searches away.
+class HypothesisIndex {
+ public:
+  HypothesisIndex(const PeakTable& table, const std::vector<Hypothesis>& hyp) {
+    const size_t frames = table.frame_first.size() - 1;
+    first_.assign(frames * kMaxLasers + 1, 0);
+    for (size_t f = 0; f < frames; ++f)
+      for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+        const PeakState& p = table.peaks[i];
+        for (int h = 0; h < p.hypotheses; ++h)
+          ++first_[f * kMaxLasers + hyp[p.first_hypothesis + h].key % kMaxLasers + 1];
+      }
+    for (size_t s = 1; s < first_.size(); ++s) first_[s] += first_[s - 1];
+    entries_.resize(first_.back());
+    std::vector<uint32_t> fill(first_.begin(), first_.end() - 1);
+    for (size_t f = 0; f < frames; ++f)
+      for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+        const PeakState& p = table.peaks[i];
+        for (int h = 0; h < p.hypotheses; ++h) {
+          const uint32_t at = p.first_hypothesis + h;
+          const Eigen::Vector3d& x = hyp[at].point;
+          entries_[fill[f * kMaxLasers + hyp[at].key % kMaxLasers]++] = {Cell(x.x(), x.y()), at};
+        }
+      }
+    for (size_t s = 0; s + 1 < first_.size(); ++s)
+      std::sort(entries_.begin() + first_[s], entries_.begin() + first_[s + 1],
+                [](const Entry& a, const Entry& b) { return a.cell < b.cell; });
+  }
+
+  // Whether the frame has a hypothesis of this laser within radius of the point.
+  bool AnyNear(const std::vector<Hypothesis>& hyp, size_t frame, int laser,
+               const Eigen::Vector3d& point, double radius) const {
+    const auto begin = entries_.begin() + first_[frame * kMaxLasers + laser];
+    const auto end = entries_.begin() + first_[frame * kMaxLasers + laser + 1];
+    if (begin == end) return false;
+    const double r2 = radius * radius;
+    const int x0 = CellIndex(point.x() - radius), x1 = CellIndex(point.x() + radius);
+    const int y0 = CellIndex(point.y() - radius), y1 = CellIndex(point.y() + radius);
+    for (int x = x0; x <= x1; ++x) {
+      // Cells of one x are consecutive in y.
+      const uint32_t lo = Pack(x, y0), hi = Pack(x, y1);
+      for (auto it = std::lower_bound(begin, end, lo,
+                                      [](const Entry&e, uint32_t c) { return e.cell < c; });
+           it != end && it->cell <= hi; ++it) {
+        if ((hyp[it->hyp].point - point).squaredNorm() <= r2) return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  static constexpr double kCellMm = 8.0;
+  struct Entry {
+    uint32_t cell;
+    uint32_t hyp;
+  };
+  static int CellIndex(double mm) { return static_cast<int>(std::floor(mm / kCellMm)) + 32768; }
+  static uint32_t Pack(int x, int y) {
+    return static_cast<uint32_t>(std::clamp(x, 0, 65535)) << 16 |
+           static_cast<uint32_t>(std::clamp(y, 0, 65535));
+  }
+  static uint32_t Cell(double x, double y) { return Pack(CellIndex(x), CellIndex(y)); }
+  std::vector<uint32_t> first_;  // per (frame, laser), and one past the end
+  std::vector<Entry> entries_;
+};
+
+// Marks the hypotheses another camera confirms: at its frame nearest in time it has a
+// hypothesis of the same laser at the same place, moved by the plane's travel between the
+// two frames. A right hypothesis is the one surface point both cameras see lit; two wrong
+// ones coincide only where their curves in a laser plane happen to cross.
+void ConfirmByStereo(const ScanArchive& archive, const PeakTable& table,
+                     const std::vector<std::array<Plane, kMaxLasers>>& planes, double max_mm,
+                     std::vector<Hypothesis>* hyp) {
+  const size_t frames = table.frame_first.size() - 1;
+  // Per camera, its frames in time order and its frame period.
+  size_t cameras = 0;
+  for (size_t f = 0; f < frames; ++f)
+    if (table.frame_first[f + 1] > table.frame_first[f])
+      cameras = std::max<size_t>(cameras, archive.frames[f].camera + 1);
+  if (cameras < 2) return;
+  std::vector<std::vector<std::pair<int64_t, uint32_t>>> by_time(cameras);
+  for (size_t f = 0; f < frames; ++f)
+    if (table.frame_first[f + 1] > table.frame_first[f])
+      by_time[archive.frames[f].camera].emplace_back(archive.frames[f].timestamp_ns, f);
+  std::vector<int64_t> period(cameras, 0);
+  for (size_t c = 0; c < cameras; ++c) {
+    auto& list = by_time[c];
+    std::sort(list.begin(), list.end());
+    std::vector<int64_t> steps;
+    for (size_t i = 1; i < list.size(); ++i) steps.push_back(list[i].first - list[i - 1].first);
+    if (!steps.empty()) {
+      std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+      period[c] = steps[steps.size() / 2];
+    }
+  }
+  const HypothesisIndex index(table, *hyp);
+  std::vector<uint32_t> partners;
+  for (size_t f = 0; f < frames; ++f) {
+    if (table.frame_first[f + 1] == table.frame_first[f]) continue;
+    const FrameRecord& frame = archive.frames[f];
+    partners.clear();
+    for (size_t c = 0; c < cameras; ++c) {
+      if (c == frame.camera || by_time[c].empty()) continue;
+      const auto& list = by_time[c];
+      const auto it = std::lower_bound(list.begin(), list.end(),
+                                       std::make_pair(frame.timestamp_ns, uint32_t{0}));
+      // The frames either side within three quarters of a period.
+      for (auto near : {it, it == list.begin() ? list.end() : it - 1}) {
+        if (near == list.end()) continue;
+        if (4 * std::abs(near->first - frame.timestamp_ns) <= 3 * period[c])
+          partners.push_back(near->second);
+      }
+    }
+    if (partners.empty()) continue;
+    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+      const PeakState& p = table.peaks[i];
+      if (p.hypotheses < 2) continue;
+      for (int h = 0; h < p.hypotheses; ++h) {
+        Hypothesis& x = (*hyp)[p.first_hypothesis + h];
+        const int laser = x.key % kMaxLasers;
+        for (uint32_t g : partners) {
+          const Plane& plane = planes[g][laser];
+          if (std::abs(plane.normal.z()) < 0.5) continue;
+          // Where the other frame's plane is above this point: the stripe has moved by that.
+          const double z =
+              -(plane.normal.x() * x.point.x() + plane.normal.y() * x.point.y() + plane.offset) /
+              plane.normal.z();
+          const Eigen::Vector3d moved(x.point.x(), x.point.y(), z);
+          if (index.AnyNear(*hyp, g, laser, moved, max_mm + std::abs(z - x.point.z()))) {
+            x.confirmed = true;
+            break;
+          }
+        }
+      }
+    }
+  }
+}
+
 // Joins peaks that are neighbours in (column, frame) and agree on some hypothesis.
 void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
                     const ReconstructOptions& options, UnionFind* labels) {
   const size_t frames = table.frame_first.size() - 1;
+  // Two neighbours decided with different keys are two surfaces that touch in the image (a
+  // mirror's stripe beside the subject's stripe of another laser in front of the mirror):
+  // joined, the larger one's vote would take the other's peaks.
+  auto join = [&](uint32_t a, uint32_t b) {
+    const PeakState& pa = table.peaks[a];
+    const PeakState& pb = table.peaks[b];
+    if (pa.chosen >= 0 && pb.chosen >= 0 &&
+        hyp[pa.first_hypothesis + pa.chosen].key != hyp[pb.first_hypothesis + pb.chosen].key)
+      return;
+    labels->Join(a, b);
+  };
   for (size_t f = 0; f < frames; ++f) {
     const uint32_t begin = table.frame_first[f], end = table.frame_first[f + 1];
     // Column neighbours: the run at u + 1 starts after the run at u.
@@ -696,7 +905,7 @@ void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
       for (uint32_t j = next_col; j < end && table.peaks[j].u == p.u + 1; ++j) {
         const PeakState& q = table.peaks[j];
         if (q.hypotheses == 0 || std::abs(q.v - p.v) > options.label_max_row_step_px) continue;
-        if (Consistent(hyp, p, q, kLinkColumnMm)) labels->Join(i, j);
+        if (Consistent(hyp, p, q, kLinkColumnMm)) join(i, j);
       }
     }
     const int32_t g = table.next_frame[f];
@@ -712,7 +921,7 @@ void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
         for (uint32_t b = lo; b < hi; ++b) {
           const PeakState& q = table.peaks[b];
           if (q.hypotheses == 0 || std::abs(q.v - p.v) > options.label_max_frame_step_px) continue;
-          if (Consistent(hyp, p, q, kLinkFrameMm)) labels->Join(a, b);
+          if (Consistent(hyp, p, q, kLinkFrameMm)) join(a, b);
         }
       }
       i = run_end;
@@ -949,6 +1158,8 @@ const char* DecidedByName(DecidedBy rule) {
       return "column_count";
     case DecidedBy::kLabelVote:
       return "label_vote";
+    case DecidedBy::kStereo:
+      return "stereo";
   }
   return "?";
 }
@@ -956,6 +1167,17 @@ const char* DecidedByName(DecidedBy rule) {
 bool BoundingCylinder::Contains(const Eigen::Vector3d& point) const {
   if (point.z() < bottom_mm || point.z() > top_mm) return false;
   return (point.head<2>() - center_mm).squaredNorm() <= radius_mm * radius_mm;
+}
+
+bool BoundingCylinder::OnFloor(const Eigen::Vector3d& point) const {
+  if (point.z() >= bottom_mm || point.z() < -std::max(bottom_mm, 20.0)) return false;
+  return (point.head<2>() - center_mm).squaredNorm() <= radius_mm * radius_mm;
+}
+
+bool BoundingCylinder::CoreContains(const Eigen::Vector3d& point) const {
+  if (point.z() < bottom_mm || point.z() > top_mm) return false;
+  const double r = std::min(core_radius_mm, radius_mm);
+  return (point.head<2>() - center_mm).squaredNorm() <= r * r;
 }
 
 BoundingCylinder BoundingCylinder::FromBoard(const std::filesystem::path& board_json) {
@@ -967,8 +1189,10 @@ BoundingCylinder BoundingCylinder::FromBoard(const std::filesystem::path& board_
   r.AllowOnly({"bounding_cylinder"});
   if (!r.Has("bounding_cylinder")) return c;
   const JsonReader b = r.Object("bounding_cylinder");
-  b.AllowOnly({"radius_mm", "bottom_mm", "top_mm", "center_mm"});
+  b.AllowOnly({"radius_mm", "core_radius_mm", "bottom_mm", "top_mm", "center_mm"});
   c.radius_mm = b.Number("radius_mm", c.radius_mm, 1.0, 1e5);
+  c.core_radius_mm = b.Number("core_radius_mm", std::min(c.core_radius_mm, c.radius_mm), 1.0, 1e5);
+  if (c.core_radius_mm > c.radius_mm) b.Fail("core_radius_mm", "must not exceed radius_mm");
   c.bottom_mm = b.Number("bottom_mm", c.bottom_mm, -1e5, 1e5);
   c.top_mm = b.Number("top_mm", c.top_mm, -1e5, 1e5);
   if (c.top_mm <= c.bottom_mm) b.Fail("top_mm", "must be above bottom_mm");
@@ -1060,20 +1284,22 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
         continue;
       }
       Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder,
-                  rays[i], &p, &hyp);
+                  options.mirror_clearance_mm, rays[i], &p, &hyp);
       if (p.no_ray) {
         ++summary.dropped_no_ray;
       } else if (p.hypotheses == 0) {
         ++summary.dropped_outside;
-      } else if (p.hypotheses == 1) {
-        p.chosen = 0;
-        p.rule = Rule::kCylinder;
       }
     }
   }
   stopwatch.Lap("triangulation");
   progress("correspondence", 0.0);
 
+  if (options.stereo) {
+    ConfirmByStereo(archive, table, planes.per_frame, options.stereo_max_mm, &hyp);
+    stopwatch.Lap("stereo");
+  }
+  DecideAlone(&table.peaks, hyp, options.cylinder);
   DecideByVolume(&table.peaks, hyp, options.cylinder);
   DecideByColumnCount(&table, hyp, planes.count);
   UnionFind labels(table.peaks.size());
@@ -1081,6 +1307,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   DecideByLabelVote(&table, hyp, &labels, options.cylinder, &summary);
   for (const PeakState& p : table.peaks) {
     if (p.chosen < 0) continue;
+    if (p.rule == Rule::kStereo) ++summary.decided_by_stereo;
     if (p.rule == Rule::kCylinder) ++summary.decided_by_cylinder;
     if (p.rule == Rule::kVolume) ++summary.decided_by_volume;
     if (p.rule == Rule::kColumnCount) ++summary.decided_by_column_count;
@@ -1089,6 +1316,12 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   stopwatch.Lap("correspondence");
   progress("filtering", 0.0);
 
+  for (PeakState& p : table.peaks) {
+    if (p.chosen >= 0 && hyp[p.first_hypothesis + p.chosen].floor) {
+      p.chosen = -1;
+      ++summary.dropped_floor;
+    }
+  }
   Grid grid(table, hyp);
   grid.Link(options.label_max_row_step_px, options.label_max_frame_step_px);
   const double min_sin = std::sin(options.min_ray_plane_angle_deg * kDegToRad);
@@ -1244,6 +1477,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
     cp.rule = p.rule == Rule::kVolume        ? DecidedBy::kVolume
               : p.rule == Rule::kColumnCount ? DecidedBy::kColumnCount
               : p.rule == Rule::kLabelVote   ? DecidedBy::kLabelVote
+              : p.rule == Rule::kStereo      ? DecidedBy::kStereo
                                              : DecidedBy::kCylinder;
     // Peak score, how squarely the ray meets the plane, how far from the stripe's end.
     const double angle_factor = std::min(1.0, gp.sin_angle / std::sin(30.0 * kDegToRad));
@@ -1297,7 +1531,8 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
           {"points_per_view", per_view},
           {"points_per_laser", s.points_per_laser},
           {"decided",
-           {{"cylinder", s.decided_by_cylinder},
+           {{"stereo", s.decided_by_stereo},
+            {"cylinder", s.decided_by_cylinder},
             {"volume", s.decided_by_volume},
             {"column_count", s.decided_by_column_count},
             {"label_vote", s.decided_by_label_vote}}},
@@ -1305,6 +1540,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
            {{"panel", s.dropped_panel},
             {"no_ray", s.dropped_no_ray},
             {"outside_volume", s.dropped_outside},
+            {"floor", s.dropped_floor},
             {"ambiguous", s.dropped_ambiguous},
             {"conflict", s.dropped_conflict},
             {"unsupported", s.dropped_unsupported},
@@ -1344,15 +1580,17 @@ std::string SummaryText(const ReconstructSummary& s) {
   text += "\n  per laser:";
   for (size_t k = 0; k < s.points_per_laser.size(); ++k)
     text += Format(" %zu: %zu", k, s.points_per_laser[k]);
-  text += Format("\n  decided by cylinder %zu, volume %zu, column count %zu, label vote %zu\n",
-                 s.decided_by_cylinder, s.decided_by_volume, s.decided_by_column_count,
-                 s.decided_by_label_vote);
   text += Format(
-      "  dropped: panel %zu, no ray %zu, outside volume %zu, ambiguous %zu, conflict %zu, "
+      "\n  decided by stereo %zu, cylinder %zu, volume %zu, column count %zu, label vote %zu\n",
+      s.decided_by_stereo, s.decided_by_cylinder, s.decided_by_volume, s.decided_by_column_count,
+      s.decided_by_label_vote);
+  text += Format(
+      "  dropped: panel %zu, no ray %zu, outside volume %zu, floor %zu, ambiguous %zu, conflict "
+      "%zu, "
       "unsupported %zu, flat angle %zu, other camera better %zu, stripe end %zu, outlier %zu\n",
-      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_ambiguous, s.dropped_conflict,
-      s.dropped_unsupported, s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end,
-      s.dropped_outlier);
+      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_floor, s.dropped_ambiguous,
+      s.dropped_conflict, s.dropped_unsupported, s.dropped_flat_angle, s.dropped_other_camera,
+      s.dropped_stripe_end, s.dropped_outlier);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

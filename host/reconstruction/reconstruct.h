@@ -49,7 +49,13 @@ enum class PointView : uint8_t {
 const char* PointViewName(PointView view);
 
 // Which correspondence rule gave a point its view and laser (docs/reconstruction.md).
-enum class DecidedBy : uint8_t { kCylinder = 0, kVolume = 1, kColumnCount = 2, kLabelVote = 3 };
+enum class DecidedBy : uint8_t {
+  kCylinder = 0,
+  kVolume = 1,
+  kColumnCount = 2,
+  kLabelVote = 3,
+  kStereo = 4
+};
 const char* DecidedByName(DecidedBy rule);
 
 struct CloudPoint {
@@ -70,16 +76,22 @@ struct PointCloud {
 };
 
 // A vertical cylinder about the cabinet's axis that holds the subject: a laser hypothesis
-// whose point falls outside it is rejected, and so is any output point.
+// whose point falls outside it is rejected, and so is any output point. Within its core
+// (core_radius_mm) stands the body itself: a peak with one hypothesis there and no other
+// camera's word against it is decided alone; out to radius_mm reach the hands.
 struct BoundingCylinder {
   Eigen::Vector2d center_mm = Eigen::Vector2d::Zero();
-  double radius_mm = 450.0;
+  double radius_mm = 650.0;
+  double core_radius_mm = 450.0;
   double bottom_mm = 20.0;
   double top_mm = 2100.0;
   bool Contains(const Eigen::Vector3d& point) const;
+  bool CoreContains(const Eigen::Vector3d& point) const;
+  // Below the bottom, down to the floor (z 0) and a little under it.
+  bool OnFloor(const Eigen::Vector3d& point) const;
   // From board.json's optional "reconstruction": {"bounding_cylinder": {"radius_mm",
-  // "bottom_mm", "top_mm", "center_mm"}}; defaults for missing keys. ConfigError naming the
-  // file and key on a bad value.
+  // "core_radius_mm", "bottom_mm", "top_mm", "center_mm"}}; defaults for missing keys. ConfigError
+  // naming the file and key on a bad value.
   static BoundingCylinder FromBoard(const std::filesystem::path& board_json);
 };
 
@@ -97,11 +109,20 @@ struct ReconstructOptions {
   // Frames whose panel-measured height is further than this from the fitted line, or whose
   // readback disagrees by more, are reported.
   double readback_tolerance_mm = 1.0;
+  // Stereo: a hypothesis is confirmed when another camera, at the nearest moment, has one of
+  // the same laser within this distance (the planes' travel between the two frames added).
+  bool stereo = true;
+  double stereo_max_mm = 3.0;
   // Rays meeting the laser plane flatter than this give no useful depth.
   double min_ray_plane_angle_deg = 8.0;
   // Merging cameras: a point is dropped where another camera has points within a 10 mm
-  // voxel whose ray–plane angle's sine is this many times larger (0: keep every camera's).
-  double prefer_camera_ratio = 1.5;
+  // voxel whose ray–plane angle's sine is this many times larger (0: keep every camera's,
+  // the default: both cameras' points are as good once the flat rays are gone, and
+  // dropping one camera's loses a fifth of the surface's points).
+  double prefer_camera_ratio = 0.0;
+  // No subject stands closer than this in front of a mirror's glass: there every camera's
+  // reflected rays run close together and phantom points confirm each other.
+  double mirror_clearance_mm = 80.0;
   // Neighbours in (column, frame) belong to one label when their rows differ less than this.
   double label_max_row_step_px = 3.0;
   double label_max_frame_step_px = 20.0;
@@ -156,7 +177,9 @@ struct ReconstructSummary {
   size_t peaks = 0;
   LaserHeightSummary laser_height;
   // How each peak's laser/view was decided, or why it was dropped.
-  size_t decided_by_cylinder = 0;  // one hypothesis inside the bounding cylinder
+  // Exactly one hypothesis that another camera saw too.
+  size_t decided_by_stereo = 0;
+  size_t decided_by_cylinder = 0;  // one hypothesis inside the bounding cylinder's core
   // Exactly one hypothesis near points the cylinder decided (the volume the scan carves).
   size_t decided_by_volume = 0;
   size_t decided_by_column_count = 0;
@@ -164,6 +187,7 @@ struct ReconstructSummary {
   size_t dropped_panel = 0;      // the laser line on a panel (laser-height data)
   size_t dropped_no_ray = 0;     // undistortion failed / ray misses everything
   size_t dropped_outside = 0;    // no hypothesis inside the bounding cylinder
+  size_t dropped_floor = 0;      // the floor lit by a laser at its height
   size_t dropped_ambiguous = 0;  // several hypotheses and nothing to decide
   size_t dropped_conflict = 0;   // its label's vote is not among its hypotheses
   // Its label's vote lands nowhere near (~10–20 mm) a peak decided without the vote.
