@@ -8,8 +8,8 @@
 #include <string>
 #include <utility>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 namespace mirrorscan {
 namespace {
