@@ -1,6 +1,7 @@
 #include "boards/virtual/renderer.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -240,15 +241,36 @@ SurfaceSample Renderer::TracePixel(int camera, const Eigen::Vector2d& pixel) con
   return sample;
 }
 
-double Renderer::LaserIrradiance(const Eigen::Vector3d& point,
-                                 const Eigen::Vector3d& normal) const {
+Renderer::BumpedPath Renderer::BumpedLightPath(int m, const Eigen::Vector3d& point) const {
+  const Lasers& lasers = scene_.lasers;
+  const Mirror& mirror = scene_.mirrors[m];
+  const Eigen::Vector3d& n = lasers.normal;
+  // The emitter on the slide in the sheet through x.
+  auto emitter_for = [&](const Eigen::Vector3d& x) {
+    return lasers.EmitterAt(
+        (n.dot(x) - n.x() * lasers.emitter_xy.x() - n.y() * lasers.emitter_xy.y()) / n.z());
+  };
+  // Start from the point's own sheet; the image moves the emitter by the bend, which moves
+  // the mirror point by half as much: a few rounds settle far below a micrometre.
+  BumpedPath path;
+  path.emitter = emitter_for(point);
+  for (int round = 0; round < 4; ++round) {
+    path.image = mirror.ImageOf(point, path.emitter);
+    path.emitter = emitter_for(path.image);
+  }
+  return path;
+}
+
+std::vector<Renderer::LaserLight> Renderer::LaserLights(const Eigen::Vector3d& point,
+                                                        const Eigen::Vector3d& normal) const {
   const Lasers& lasers = scene_.lasers;
   // The emitter sits on the slide in the laser plane through the point.
   const Eigen::Vector3d& n = lasers.normal;
   const double emitter_z =
       (n.dot(point) - n.x() * lasers.emitter_xy.x() - n.y() * lasers.emitter_xy.y()) / n.z();
   const Eigen::Vector3d emitter = lasers.EmitterAt(emitter_z);
-  double total = 0.0;
+  double own_sheet = 0.0;  // direct and through flat mirrors
+  std::vector<LaserLight> lights;
 
   auto contribution = [&](const Eigen::Vector3d& toward, double length) {
     // A line laser spreads its power along the line: irradiance falls as 1/r.
@@ -259,26 +281,61 @@ double Renderer::LaserIrradiance(const Eigen::Vector3d& point,
     const double r = d.norm();
     const Eigen::Vector3d dir = d / r;
     if (normal.dot(dir) > 0 && !tracer_.Occluded({point, dir}, 0.05, r - 0.05)) {
-      total += contribution(dir, r);
+      own_sheet += contribution(dir, r);
     }
   }
-  for (const Mirror& mirror : scene_.mirrors) {
-    const Eigen::Vector3d virtual_emitter = mirror.plane.ReflectPoint(emitter);
-    const Eigen::Vector3d d = virtual_emitter - point;
-    const double r = d.norm();
-    const Eigen::Vector3d dir = d / r;
+  for (int m = 0; m < static_cast<int>(scene_.mirrors.size()); ++m) {
+    const Mirror& mirror = scene_.mirrors[m];
+    if (mirror.bump_mm == 0.0) {
+      const Eigen::Vector3d virtual_emitter = mirror.plane.ReflectPoint(emitter);
+      const Eigen::Vector3d d = virtual_emitter - point;
+      const double r = d.norm();
+      const Eigen::Vector3d dir = d / r;
+      if (normal.dot(dir) <= 0) continue;
+      const Ray3d to_mirror{point, dir};
+      const auto t = IntersectRayPlane(to_mirror, mirror.plane, 0.05);
+      if (!t || *t >= r) continue;
+      const Eigen::Vector3d on_mirror = to_mirror.At(*t);
+      if (!mirror.Contains(on_mirror)) continue;
+      if (tracer_.Occluded(to_mirror, 0.05, *t - 0.05)) continue;
+      const Eigen::Vector3d back = emitter - on_mirror;
+      const double back_length = back.norm();
+      if (tracer_.Occluded({on_mirror, back / back_length}, 0.05, back_length - 0.05)) continue;
+      own_sheet += mirror.reflectivity * contribution(dir, r);
+      continue;
+    }
+    // Through the bumped surface: the emitter sends its light towards the point's image,
+    // meets the mirror where the law of reflection holds, and the light reaches the point.
+    const BumpedPath path = BumpedLightPath(m, point);
+    const Ray3d sight{path.emitter, (path.image - path.emitter).normalized()};
+    const auto t = IntersectRayPlane(sight, mirror.plane, 1e-6);
+    if (!t) continue;
+    const Eigen::Vector3d in_plane = sight.At(*t);
+    if (!mirror.Contains(in_plane)) continue;
+    const Eigen::Vector3d on_mirror =
+        in_plane + mirror.Displacement(mirror.Local(in_plane)) * mirror.plane.normal;
+    const Eigen::Vector3d d = on_mirror - point;
+    const double to_mirror_length = d.norm();
+    const Eigen::Vector3d dir = d / to_mirror_length;
     if (normal.dot(dir) <= 0) continue;
-    const Ray3d to_mirror{point, dir};
-    const auto t = IntersectRayPlane(to_mirror, mirror.plane, 0.05);
-    if (!t || *t >= r) continue;
-    const Eigen::Vector3d on_mirror = to_mirror.At(*t);
-    if (!mirror.Contains(on_mirror)) continue;
-    if (tracer_.Occluded(to_mirror, 0.05, *t - 0.05)) continue;
-    const Eigen::Vector3d back = emitter - on_mirror;
+    // The point must lie in front of the mirror, the emitter too.
+    if (mirror.plane.SignedDistance(point) <= 0.0) continue;
+    if (tracer_.Occluded({point, dir}, 0.05, to_mirror_length - 0.05)) continue;
+    const Eigen::Vector3d back = path.emitter - on_mirror;
     const double back_length = back.norm();
     if (tracer_.Occluded({on_mirror, back / back_length}, 0.05, back_length - 0.05)) continue;
-    total += mirror.reflectivity * contribution(dir, r);
+    const double irradiance =
+        mirror.reflectivity * contribution(dir, to_mirror_length + back_length);
+    if (irradiance > 0.0) lights.push_back({n.dot(path.image), irradiance, m});
   }
+  if (own_sheet > 0.0) lights.push_back({n.dot(point), own_sheet, -1});
+  return lights;
+}
+
+double Renderer::LaserIrradiance(const Eigen::Vector3d& point,
+                                 const Eigen::Vector3d& normal) const {
+  double total = 0.0;
+  for (const LaserLight& light : LaserLights(point, normal)) total += light.irradiance;
   return total;
 }
 
@@ -359,17 +416,20 @@ void Renderer::BuildCache(int camera) const {
         // Without laser power (a lens calibration's captures) no pixel is lit: skip the
         // shadow rays, most of the cost of this pass.
         if (scene_.lasers.power <= 0.0) continue;
-        const double irradiance = LaserIrradiance(s.hit.point, s.hit.normal);
-        if (irradiance <= 0.0) continue;
-        const double gain =
-            sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * irradiance;
-        if (gain < 1e-3) continue;
         // The blur index holds the blur bin until the bins are numbered below.
         const auto blur_bin = static_cast<uint16_t>(
             std::min(65535l, std::lround(sensor.BlurAt(s.path_length) / kBlurStepPx)));
-        lit_rows[v].push_back({laser_normal.dot(s.hit.point), static_cast<float>(span),
-                               static_cast<float>(gain), static_cast<uint32_t>(index), blur_bin,
-                               s.material == Material::kSubject && spread.Active()});
+        // One entry per sheet the light arrives on (a bumped mirror's is its own). Across
+        // the pixel a bumped mirror's sheet changes as the point's own does: the bend
+        // varies over hundreds of millimetres, the pixel spans a few.
+        for (const LaserLight& light : LaserLights(s.hit.point, s.hit.normal)) {
+          const double gain =
+              sensor.laser_dn * scene_.lasers.power * albedo * s.transmission * light.irradiance;
+          if (gain < 1e-3) continue;
+          lit_rows[v].push_back({light.sheet_mm, static_cast<float>(span), static_cast<float>(gain),
+                                 static_cast<uint32_t>(index), blur_bin,
+                                 s.material == Material::kSubject && spread.Active()});
+        }
       }
     }
   });
@@ -590,91 +650,132 @@ std::vector<TruthPeak> Renderer::Truth(int camera, double t) const {
                             std::abs(spread.tail_mm) < 0.05 * spread_sigma ? 0.0 : spread.tail_mm)
           : 1.0;
 
+  const Eigen::Vector3d& laser_normal = scene_.lasers.normal;
+  // Each laser's light arrives on its own sheet (direct, and through flat mirrors) and on
+  // the sheet bent by each bumped mirror (LaserLights): one pass over the meshes each.
+  std::vector<int> lights = {-1};
+  std::array<double, 2> bend_bound{};  // how far a bumped mirror can bend the light, mm
+  for (int m = 0; m < static_cast<int>(scene_.mirrors.size()); ++m) {
+    const Mirror& mirror = scene_.mirrors[m];
+    if (mirror.bump_mm == 0.0) continue;
+    lights.push_back(m);
+    // The surface tilts by at most 4 bump / side along each axis; the light turns by
+    // twice that, over a path (emitter, mirror, point) far shorter than 4 m.
+    const double tilt =
+        std::sqrt(2.0) * 4.0 * std::abs(mirror.bump_mm) / std::min(mirror.width, mirror.height);
+    bend_bound[m] = 2.0 * tilt * 4000.0 + 1.0;
+  }
   for (int k = 0; k < scene_.lasers.count; ++k) {
     const Plane plane = scene_.lasers.PlaneAt(k, t);
-    for (size_t g = 0; g < materials_.size(); ++g) {
-      const enum Material material = materials_[g];
-      if (material != Material::kSubject && material != Material::kTarget &&
-          material != Material::kPanel)
-        continue;
-      const TriangleMesh& mesh = tracer_.mesh(static_cast<int>(g));
-      for (size_t tri = 0; tri < mesh.triangles.size(); ++tri) {
-        const Eigen::Vector3i& ids = mesh.triangles[tri];
-        const Eigen::Vector3d p[3] = {mesh.vertices[ids[0]], mesh.vertices[ids[1]],
-                                      mesh.vertices[ids[2]]};
-        double d[3];
-        for (int i = 0; i < 3; ++i) d[i] = plane.SignedDistance(p[i]);
-        Eigen::Vector3d ends[2];
-        int found = 0;
-        for (int i = 0; i < 3 && found < 2; ++i) {
-          const int j = (i + 1) % 3;
-          if ((d[i] >= 0) != (d[j] >= 0))
-            ends[found++] = p[i] + (d[i] / (d[i] - d[j])) * (p[j] - p[i]);
-        }
-        if (found != 2) continue;
-        const Eigen::Vector3d normal = mesh.TriangleNormal(static_cast<int>(tri));
-        for (View view : views) {
-          const std::vector<int> path = MirrorPath(view);
-          // The camera sees P at M1(M2(P)); equivalently P from the camera centre M2(M1(C)).
-          Eigen::Vector3d virtual_center = center;
-          for (int m : path) virtual_center = scene_.mirrors[m].plane.ReflectPoint(virtual_center);
-          const Eigen::Vector3d mid = 0.5 * (ends[0] + ends[1]);
-          // Panels and target quads are seen from either side; closed meshes only from outside.
-          if (material == Material::kSubject && normal.dot(virtual_center - mid) <= 0) continue;
-          auto project = [&](const Eigen::Vector3d& point) {
-            // One bounce through the mirror's true (possibly bumped) surface; two bounces
-            // through the planes (a bumped double bounce fails the trace check below).
-            Eigen::Vector3d q = point;
-            if (path.size() == 1) {
-              q = scene_.mirrors[path[0]].ImageOf(point, center);
-            } else {
-              for (auto it = path.rbegin(); it != path.rend(); ++it)
-                q = scene_.mirrors[*it].plane.ReflectPoint(q);
+    for (const int light_mirror : lights) {
+      // Signed distance of a point's light from laser k's sheet.
+      auto sheet_distance = [&](const Eigen::Vector3d& x) {
+        const double own = plane.SignedDistance(x);
+        if (light_mirror < 0 || std::abs(own) > bend_bound[light_mirror]) return own;
+        return laser_normal.dot(BumpedLightPath(light_mirror, x).image) + plane.offset;
+      };
+      for (size_t g = 0; g < materials_.size(); ++g) {
+        const enum Material material = materials_[g];
+        if (material != Material::kSubject && material != Material::kTarget &&
+            material != Material::kPanel)
+          continue;
+        const TriangleMesh& mesh = tracer_.mesh(static_cast<int>(g));
+        for (size_t tri = 0; tri < mesh.triangles.size(); ++tri) {
+          const Eigen::Vector3i& ids = mesh.triangles[tri];
+          const Eigen::Vector3d p[3] = {mesh.vertices[ids[0]], mesh.vertices[ids[1]],
+                                        mesh.vertices[ids[2]]};
+          double d[3];
+          for (int i = 0; i < 3; ++i) d[i] = sheet_distance(p[i]);
+          Eigen::Vector3d ends[2];
+          int found = 0;
+          for (int i = 0; i < 3 && found < 2; ++i) {
+            const int j = (i + 1) % 3;
+            if ((d[i] >= 0) != (d[j] >= 0)) {
+              double f = d[i] / (d[i] - d[j]);
+              if (light_mirror >= 0) {
+                // The bent sheet is not a plane: bisect the edge on it.
+                double lo = 0.0, hi = 1.0;
+                for (int iteration = 0; iteration < 30; ++iteration) {
+                  f = 0.5 * (lo + hi);
+                  if ((sheet_distance(p[i] + f * (p[j] - p[i])) >= 0) == (d[i] >= 0))
+                    lo = f;
+                  else
+                    hi = f;
+                }
+              }
+              ends[found++] = p[i] + f * (p[j] - p[i]);
             }
-            return cam.ProjectWorld(q);
-          };
-          const auto pa = project(ends[0]), pb = project(ends[1]);
-          if (!pa || !pb) continue;
-          const double u_lo = std::min(pa->x(), pb->x()), u_hi = std::max(pa->x(), pb->x());
-          for (int u = static_cast<int>(std::ceil(u_lo)); u <= static_cast<int>(std::floor(u_hi));
-               ++u) {
-            if (u < 0 || u >= cam.intrinsics.width) continue;
-            // Bisection on the segment for the exact column (the image of a straight
-            // segment is curved by lens distortion).
-            double lo = 0.0, hi = 1.0;
-            const bool rising = pb->x() > pa->x();
-            Eigen::Vector3d point = ends[0];
-            std::optional<Eigen::Vector2d> pixel;
-            for (int iteration = 0; iteration < 60; ++iteration) {
-              const double mid_t = 0.5 * (lo + hi);
-              point = ends[0] + mid_t * (ends[1] - ends[0]);
-              pixel = project(point);
-              if (!pixel) break;
-              if ((pixel->x() < u) == rising)
-                lo = mid_t;
-              else
-                hi = mid_t;
+          }
+          if (found != 2) continue;
+          const Eigen::Vector3d normal = mesh.TriangleNormal(static_cast<int>(tri));
+          for (View view : views) {
+            const std::vector<int> path = MirrorPath(view);
+            // The camera sees P at M1(M2(P)); equivalently P from the camera centre M2(M1(C)).
+            Eigen::Vector3d virtual_center = center;
+            for (int m : path)
+              virtual_center = scene_.mirrors[m].plane.ReflectPoint(virtual_center);
+            const Eigen::Vector3d mid = 0.5 * (ends[0] + ends[1]);
+            // Panels and target quads are seen from either side; closed meshes only from outside.
+            if (material == Material::kSubject && normal.dot(virtual_center - mid) <= 0) continue;
+            auto project = [&](const Eigen::Vector3d& point) {
+              // One bounce through the mirror's true (possibly bumped) surface; two bounces
+              // through the planes (a bumped double bounce fails the trace check below).
+              Eigen::Vector3d q = point;
+              if (path.size() == 1) {
+                q = scene_.mirrors[path[0]].ImageOf(point, center);
+              } else {
+                for (auto it = path.rbegin(); it != path.rend(); ++it)
+                  q = scene_.mirrors[*it].plane.ReflectPoint(q);
+              }
+              return cam.ProjectWorld(q);
+            };
+            const auto pa = project(ends[0]), pb = project(ends[1]);
+            if (!pa || !pb) continue;
+            const double u_lo = std::min(pa->x(), pb->x()), u_hi = std::max(pa->x(), pb->x());
+            for (int u = static_cast<int>(std::ceil(u_lo)); u <= static_cast<int>(std::floor(u_hi));
+                 ++u) {
+              if (u < 0 || u >= cam.intrinsics.width) continue;
+              // Bisection on the segment for the exact column (the image of a straight
+              // segment is curved by lens distortion).
+              double lo = 0.0, hi = 1.0;
+              const bool rising = pb->x() > pa->x();
+              Eigen::Vector3d point = ends[0];
+              std::optional<Eigen::Vector2d> pixel;
+              for (int iteration = 0; iteration < 60; ++iteration) {
+                const double mid_t = 0.5 * (lo + hi);
+                point = ends[0] + mid_t * (ends[1] - ends[0]);
+                pixel = project(point);
+                if (!pixel) break;
+                if ((pixel->x() < u) == rising)
+                  lo = mid_t;
+                else
+                  hi = mid_t;
+              }
+              if (!pixel || !cam.intrinsics.InImage(*pixel)) continue;
+              const SurfaceSample s = TracePixel(camera, {u, pixel->y()});
+              if (s.view != view || (s.hit.point - point).norm() > 0.05) continue;
+              // Only the light of this sheet: direct and flat mirrors, or the bumped mirror's.
+              double irradiance = 0.0;
+              for (const LaserLight& light : LaserLights(point, s.hit.normal)) {
+                if (light.bumped_mirror == light_mirror) irradiance = light.irradiance;
+              }
+              if (irradiance <= 0) continue;
+              const auto key =
+                  std::make_tuple(k, static_cast<int>(view), u, std::llround(pixel->y() * 1000));
+              if (!seen.insert(key).second) continue;
+              TruthPeak peak;
+              peak.camera = camera;
+              peak.laser = k;
+              peak.view = view;
+              peak.material = material;
+              peak.u = u;
+              peak.v = pixel->y();
+              peak.point_in_world = point;
+              peak.peak_dn = scene_.sensor.laser_dn * scene_.lasers.power * Albedo(s.hit, 1.0) *
+                             s.transmission * irradiance *
+                             (material == Material::kSubject ? spread_peak : 1.0);
+              peaks.push_back(peak);
             }
-            if (!pixel || !cam.intrinsics.InImage(*pixel)) continue;
-            const SurfaceSample s = TracePixel(camera, {u, pixel->y()});
-            if (s.view != view || (s.hit.point - point).norm() > 0.05) continue;
-            const double irradiance = LaserIrradiance(point, s.hit.normal);
-            if (irradiance <= 0) continue;
-            const auto key =
-                std::make_tuple(k, static_cast<int>(view), u, std::llround(pixel->y() * 1000));
-            if (!seen.insert(key).second) continue;
-            TruthPeak peak;
-            peak.camera = camera;
-            peak.laser = k;
-            peak.view = view;
-            peak.material = material;
-            peak.u = u;
-            peak.v = pixel->y();
-            peak.point_in_world = point;
-            peak.peak_dn = scene_.sensor.laser_dn * scene_.lasers.power * Albedo(s.hit, 1.0) *
-                           s.transmission * irradiance *
-                           (material == Material::kSubject ? spread_peak : 1.0);
-            peaks.push_back(peak);
           }
         }
       }

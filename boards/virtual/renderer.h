@@ -82,6 +82,21 @@ class Renderer {
 
   // Follows the camera ray through `pixel`, reflecting in the mirrors (at most two bounces).
   SurfaceSample TracePixel(int camera, const Eigen::Vector2d& pixel) const;
+  // Laser light reaching a surface point along one kind of path. The laser sheets are
+  // the planes lasers.normal · x = height. Direct light, and light through a flat
+  // (vertical) mirror, which reflects a sheet into itself, is at the point's own sheet
+  // coordinate. Light through a bumped mirror is bent out of the sheet by the surface's
+  // local tilt: it reaches the point from the sheet that holds the point's image in that
+  // mirror as the emitter sees it (Mirror::ImageOf, as for the camera).
+  struct LaserLight {
+    double sheet_mm = 0.0;    // lasers.normal · the point, or · its image in a bumped mirror
+    double irradiance = 0.0;  // > 0
+    int bumped_mirror = -1;   // the bumped mirror the light came through; -1: none
+  };
+  // At most one entry for the point's own sheet (direct and flat mirrors, summed) and one
+  // per bumped mirror; none when no emitter path reaches the point.
+  std::vector<LaserLight> LaserLights(const Eigen::Vector3d& point,
+                                      const Eigen::Vector3d& normal) const;
   // Laser irradiance factor at a surface point (0 when no emitter path reaches it):
   // the sum over the direct path and the paths through each mirror.
   double LaserIrradiance(const Eigen::Vector3d& point, const Eigen::Vector3d& normal) const;
@@ -101,6 +116,12 @@ class Renderer {
   // Laser light only (CV_32F, blurred); speckle from the seed, none without one.
   cv::Mat LaserImage(int camera, double t, std::optional<uint64_t> speckle_seed) const;
   double Albedo(const RayHit& hit, double footprint_mm) const;
+  // Where light through bumped mirror `m` reaching `point` left the emitter: the point's
+  // image in the mirror as that emitter sees it, and the emitter, whose sheet holds it.
+  struct BumpedPath {
+    Eigen::Vector3d image, emitter;
+  };
+  BumpedPath BumpedLightPath(int m, const Eigen::Vector3d& point) const;
 
   Scene scene_;
   RayTracer tracer_;

@@ -12,8 +12,8 @@
 
 #include "boards/virtual/chessboard.h"
 #include "boards/virtual/mesh.h"
+#include "boards/virtual/rendered_target.h"
 #include "boards/virtual/subjects.h"
-#include "boards/virtual/target.h"
 #include "common/geometry/camera.h"
 #include "common/geometry/plane.h"
 
@@ -134,7 +134,7 @@ struct Scene {
   Lasers lasers;
   Sensor sensor;
   Subject subject;
-  std::optional<CalibrationTarget> target;
+  std::optional<RenderedTarget> target;
   std::optional<Chessboard> chessboard;  // held for a lens calibration
   int frames = 300;
   uint64_t seed = 1;

@@ -19,7 +19,8 @@ std::unique_ptr<hal::SlideDrive> MakeDrive(const BoardConfig& config, BoardDevic
     return std::make_unique<hal::ModbusSlideDrive>(config.drive.modbus);
   }
   devices.drive_sim = virtual_cabinet::DriveSim::ServeTcp({});
-  hal::ModbusDriveConfig modbus;  // the simulator's default register map
+  // Both ends default to the same register map (common/modbus/register_map.h).
+  hal::ModbusDriveConfig modbus;
   modbus.host = "127.0.0.1";
   modbus.port = devices.drive_sim->port();
   return std::make_unique<hal::ModbusSlideDrive>(modbus);

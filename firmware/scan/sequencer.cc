@@ -514,10 +514,12 @@ void Sequencer::OnFrame(int camera, hal::Frame frame) {
   if (!recording_) return;  // before the sweep: the frame goes back to the pool
   CapturedItem item;
   item.camera = camera;
-  const std::vector<bool> lasers = devices_.lasers->states();
+  // Lit: the control loop had switched the lasers on before the exposure began, and no
+  // trip has made them safe since (the supervisor flags the trip before it drives the
+  // lines off). The sequencer's own record, not a query of the laser bank per frame.
   const int64_t lasers_on_since_ns = lasers_on_since_ns_.load();
-  item.lasers_on = std::find(lasers.begin(), lasers.end(), true) != lasers.end() &&
-                   lasers_on_since_ns != 0 && frame.timestamp_ns() >= lasers_on_since_ns;
+  item.lasers_on = lasers_on_since_ns != 0 && frame.timestamp_ns() >= lasers_on_since_ns &&
+                   !supervisor_->tripped();
   item.frame = std::move(frame);
   if (!capture_queue_->TryPush(item)) ++counters_[camera]->queue_dropped;
 }
@@ -565,9 +567,10 @@ void Sequencer::Fail(const std::string& reason) {
   trip.fault = true;
   trip.reason = reason;
   trip.detected_ns = hal::SteadyNowNs();
+  // Dark in the records from here on, before Disarm() clears the supervisor's trip flag.
+  lasers_on_since_ns_ = 0;
   supervisor_->Disarm();
   devices_.lasers->SafeOff();
-  lasers_on_since_ns_ = 0;
   trip.safe_ns = hal::SteadyNowNs();
   try {
     devices_.drive->Stop();
@@ -583,9 +586,9 @@ void Sequencer::Fail(const std::string& reason) {
 
 void Sequencer::EndScan(SequencerState end, const std::string& reason) {
   recording_ = false;
+  lasers_on_since_ns_ = 0;  // as in Fail(): before Disarm() clears the trip flag
   supervisor_->Disarm();
   if (!devices_.lasers->SafeOff()) spdlog::critical("sequencer: a laser line did not go off");
-  lasers_on_since_ns_ = 0;
   if (end != SequencerState::kDone) {
     try {
       devices_.drive->Stop();

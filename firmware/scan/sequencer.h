@@ -173,8 +173,10 @@ class Sequencer final : public ScanControl {
   int64_t last_progress_ns_ = 0;
   std::vector<std::unique_ptr<CameraCounters>> counters_;
   std::atomic<bool> recording_{false};  // frames go to the archive
-  // When the lasers went on in this sweep (steady ns), 0 while they are off: a frame whose
-  // exposure began earlier is recorded as lasers off even if it arrives after.
+  // The lasers' commanded state, owned by the control loop (OnFrame reads it instead of
+  // asking the laser bank per frame): when it switched them on in this sweep (steady ns),
+  // 0 once it switched them off. A frame whose exposure began earlier is recorded as
+  // lasers off even if it arrives after; so is every frame once the supervisor tripped.
   std::atomic<int64_t> lasers_on_since_ns_{0};
   std::vector<std::unique_ptr<std::atomic<int64_t>>> first_frame_ns_;
   std::atomic<bool> capture_busy_{false};

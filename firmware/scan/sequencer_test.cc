@@ -459,7 +459,28 @@ TEST_F(SequencerTest, DriveNotAnsweringTrips) {
   ASSERT_TRUE(trip.has_value());
   EXPECT_LE(trip->safe_ns - trip->detected_ns, 50 * kMs);
   EXPECT_NE(sequencer_->Status().reason.find("drive not answering"), std::string::npos);
-  ExpectStored(id, store::ScanState::kFault, "fault");
+  const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
+  // The supervisor's Stop() to the silent drive takes its retries (~0.3 s) before the
+  // control loop hears of the trip; frames keep arriving meanwhile. Those exposed once the
+  // lines were low are recorded dark, those before the silence lit (but a first frame
+  // that began before the lasers went on).
+  const int64_t lines_low_ns = LasersOffNs();
+  size_t dark_after = 0, lit_before = 0;
+  std::map<int, bool> first;
+  for (const FrameRecord& f : archive.frames) {
+    const bool is_first = first.emplace(f.camera, true).second;
+    if (f.timestamp_ns >= lines_low_ns) {
+      EXPECT_FALSE(f.lasers_on) << "camera " << int{f.camera} << " sequence " << f.sequence;
+      ++dark_after;
+    } else if (f.timestamp_ns < silent_ns && !is_first) {
+      EXPECT_TRUE(f.lasers_on) << "camera " << int{f.camera} << " sequence " << f.sequence;
+      ++lit_before;
+    }
+  }
+  std::printf("frames recorded after the lines went low: %zu (dark), before the silence: %zu\n",
+              dark_after, lit_before);
+  EXPECT_GT(dark_after, 0u);
+  EXPECT_GT(lit_before, 0u);
 }
 
 TEST_F(SequencerTest, DriveSilentWhileHomingFaultsWithoutLaserLight) {

@@ -48,24 +48,18 @@ struct CameraData {
   CameraReport report;
 };
 
-Eigen::Vector2d PanelCoordinates(const virtual_cabinet::TargetPanel& panel,
-                                 const Eigen::Vector3d& p) {
-  return {(p - panel.origin).dot(panel.right), (p - panel.origin).dot(panel.up)};
-}
-
-MarkerDetectorOptions DetectorOptions(const virtual_cabinet::CalibrationTarget& target) {
+MarkerDetectorOptions DetectorOptions(const CalibrationTarget& target) {
   MarkerDetectorOptions options;
-  options.markers_per_panel = virtual_cabinet::kTargetMarkersPerPanel;
+  options.markers_per_panel = kTargetMarkersPerPanel;
   for (const auto& m : target.markers()) {
     std::array<Eigen::Vector2d, 4> layout;
-    for (int c = 0; c < 4; ++c)
-      layout[c] = PanelCoordinates(target.panels()[m.panel], m.corners[c]);
+    for (int c = 0; c < 4; ++c) layout[c] = target.PanelCoordinates(m.panel, m.corners[c]);
     options.layout_mm.push_back(layout);
   }
   return options;
 }
 
-CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTarget& target) {
+CameraData Detect(const CameraImage& image, const CalibrationTarget& target) {
   if (image.gray.empty() || image.gray.type() != CV_8UC1) {
     throw std::invalid_argument("camera " + image.name + ": expected an 8-bit grayscale image");
   }
@@ -92,16 +86,16 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
     report.view = static_cast<ViewId>(v);
     report.rejected = detections[v].rejected;
     ViewPoints& points = data.views[v];
-    std::vector<bool> seen(virtual_cabinet::kTargetMarkersPerPanel, false);
+    std::vector<bool> seen(kTargetMarkersPerPanel, false);
     for (const DetectedMarker& m : detections[v].markers) {
       const auto& truth = target.markers()[m.id];
       report.found.push_back(m.id);
-      seen[m.id % virtual_cabinet::kTargetMarkersPerPanel] = true;
+      seen[m.id % kTargetMarkersPerPanel] = true;
       report.contrast_dn += m.contrast_dn / detections[v].markers.size();
       report.edge_sigma_px += m.edge_sigma_px / detections[v].markers.size();
       for (int c = 0; c < 4; ++c) {
         points.in_world.push_back(truth.corners[c]);
-        points.in_panel.push_back(PanelCoordinates(target.panels()[v], truth.corners[c]));
+        points.in_panel.push_back(target.PanelCoordinates(v, truth.corners[c]));
         points.pixels.push_back(m.corners[c]);
         const Eigen::Vector2d from = m.corners[c], to = m.corners[(c + 1) % 4];
         for (const Eigen::Vector2d& p : m.edge_points[c]) {
@@ -110,8 +104,8 @@ CameraData Detect(const CameraImage& image, const virtual_cabinet::CalibrationTa
         }
       }
     }
-    for (int i = 0; i < virtual_cabinet::kTargetMarkersPerPanel; ++i) {
-      if (!seen[i]) report.missing.push_back(v * virtual_cabinet::kTargetMarkersPerPanel + i);
+    for (int i = 0; i < kTargetMarkersPerPanel; ++i) {
+      if (!seen[i]) report.missing.push_back(v * kTargetMarkersPerPanel + i);
     }
     report.observed = points.pixels;
   }
@@ -202,7 +196,7 @@ void CheckCoverage(const CameraReport& report, const CalibrationLimits& limits,
 // Pose of the (virtual, for mirror views flipped) camera of one view for given
 // intrinsics, from the view's planar panel.
 Rigid3d ViewPose(const CameraData& data, int view, const CameraIntrinsics& k,
-                 const virtual_cabinet::CalibrationTarget& target) {
+                 const CalibrationTarget& target) {
   std::vector<cv::Point3d> object_points;
   std::vector<cv::Point2d> image_points;
   const ViewPoints& points = data.views[view];
@@ -240,7 +234,7 @@ struct InitialModel {
 };
 
 InitialModel ModelForIntrinsics(const CameraData& data, const CameraIntrinsics& k,
-                                const virtual_cabinet::CalibrationTarget& target) {
+                                const CalibrationTarget& target) {
   InitialModel model;
   model.camera = {k, ViewPose(data, 0, k, target)};
   const Eigen::Vector3d centre = model.camera.CenterInWorld();
@@ -272,8 +266,7 @@ InitialModel ModelForIntrinsics(const CameraData& data, const CameraIntrinsics& 
 // two mirrors at the mid-planes of Eq. 1. So the focal length is the one whose combined
 // model reprojects best, searched over a wide range with the principal point at the
 // image centre and no distortion; the joint refinement frees everything.
-InitialModel InitialiseModel(const CameraData& data,
-                             const virtual_cabinet::CalibrationTarget& target) {
+InitialModel InitialiseModel(const CameraData& data, const CalibrationTarget& target) {
   if (data.lens) return ModelForIntrinsics(data, *data.lens, target);
   CameraIntrinsics k;
   k.width = data.width;
@@ -606,8 +599,8 @@ void AddRmsChecks(const std::vector<CameraReport>& cameras, double limit, const 
 
 std::vector<CameraData> DetectAll(const std::vector<CameraImage>& images,
                                   const CalibrationSettings& settings,
-                                  const virtual_cabinet::CalibrationTarget& target,
-                                  CalibrationResult& result, bool& solvable) {
+                                  const CalibrationTarget& target, CalibrationResult& result,
+                                  bool& solvable) {
   if (images.empty()) throw std::invalid_argument("no camera image given");
   std::vector<CameraData> data;
   solvable = true;
@@ -649,7 +642,7 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
   const JsonReader r = root.Object("calibration");
   r.AllowOnly({"target", "target_id", "mirror_width_mm", "mirror_height_mm", "mirror_bottom_mm",
                "panel_offset_mm", "corner_xy_mm", "lens_chessboard", "limits"});
-  if (r.Has("target")) s.target = virtual_cabinet::TargetConfig::Parse(r.Object("target"));
+  if (r.Has("target")) s.target = TargetConfig::Parse(r.Object("target"));
   s.target_id = r.String("target_id", s.target_id);
   s.mirror_width_mm = r.Number("mirror_width_mm", s.mirror_width_mm, 10.0, 1e4);
   s.mirror_height_mm = r.Number("mirror_height_mm", s.mirror_height_mm, 10.0, 1e4);
@@ -672,8 +665,8 @@ CalibrationSettings CalibrationSettings::FromBoard(const nlohmann::json& board,
                  "max_panel_offset_error_mm", "min_lens_coverage"});
     CalibrationLimits& x = s.limits;
     x.max_rms_px = l.Number("max_rms_px", x.max_rms_px, 0.001, 100.0);
-    x.min_markers_per_view = l.Integer("min_markers_per_view", x.min_markers_per_view, 4,
-                                       virtual_cabinet::kTargetMarkersPerPanel);
+    x.min_markers_per_view =
+        l.Integer("min_markers_per_view", x.min_markers_per_view, 4, kTargetMarkersPerPanel);
     x.min_contrast_dn = l.Number("min_contrast_dn", x.min_contrast_dn, 0.0, 255.0);
     x.max_edge_sigma_px = l.Number("max_edge_sigma_px", x.max_edge_sigma_px, 0.1, 100.0);
     x.min_white_dn = l.Number("min_white_dn", x.min_white_dn, 0.0, 255.0);
@@ -697,7 +690,7 @@ CalibrationSettings CalibrationSettings::LoadBoard(const std::filesystem::path& 
 
 CalibrationResult Calibrate(const std::vector<CameraImage>& images,
                             const CalibrationSettings& settings) {
-  const virtual_cabinet::CalibrationTarget target(settings.target);
+  const CalibrationTarget target(settings.target);
   CalibrationResult result;
   bool solvable = true;
   std::vector<CameraData> data = DetectAll(images, settings, target, result, solvable);
@@ -803,7 +796,7 @@ CalibrationResult Calibrate(const std::vector<CameraImage>& images,
 
 CalibrationResult Verify(const std::vector<CameraImage>& images,
                          const CalibrationSettings& settings, const Calibration& existing) {
-  const virtual_cabinet::CalibrationTarget target(settings.target);
+  const CalibrationTarget target(settings.target);
   CalibrationResult result;
   bool solvable = true;
   const std::vector<CameraData> data = DetectAll(images, settings, target, result, solvable);

@@ -13,9 +13,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core/mat.hpp>
 
-#include "boards/virtual/target.h"
 #include "common/config/calibration.h"
 #include "common/config/json_reader.h"
+#include "common/target/target.h"
 #include "host/calibration/markers.h"
 
 namespace mirrorscan::calibration {
@@ -46,7 +46,7 @@ struct CalibrationLimits {
 // board.json's "calibration" section (every key optional) plus the camera names.
 struct CalibrationSettings {
   std::vector<std::string> camera_names;
-  virtual_cabinet::TargetConfig target;
+  TargetConfig target;
   std::string target_id = "3panel-aruco48";
   double mirror_width_mm = 620.0;  // nominal reflecting rectangle, for the view regions
   double mirror_height_mm = 1700.0;

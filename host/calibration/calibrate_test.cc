@@ -89,7 +89,7 @@ TEST(CalibrateTest, FlatMirrorsBothCamerasMatchTruth) {
       // Every corner found is where the true calibration projects the target's corner.
       const CalibrationCamera& true_cam = *truth.FindCamera(result.cameras[c].name);
       const Plane* mirror = v == ViewId::kCenter ? nullptr : &truth.FindMirror(ViewName(v))->plane;
-      const virtual_cabinet::CalibrationTarget target(scene.target->config());
+      const CalibrationTarget& target = *scene.target;
       double sum2 = 0.0, worst = 0.0;
       for (size_t m = 0; m < view.found.size(); ++m) {
         for (int k = 0; k < 4; ++k) {

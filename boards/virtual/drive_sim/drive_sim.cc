@@ -41,18 +41,18 @@ DriveSim::DriveSim(const DriveSimConfig& config) : config_(config), model_(confi
   int bits = 0;
   int holding = 0;
   int input = 0;
-  auto need = [&](DriveSimTable table, int address, int count) {
-    Need(table == DriveSimTable::kCoils     ? bits
-         : table == DriveSimTable::kHolding ? holding
-                                            : input,
+  auto need = [&](ModbusTable table, int address, int count) {
+    Need(table == ModbusTable::kCoils     ? bits
+         : table == ModbusTable::kHolding ? holding
+                                          : input,
          address, count);
   };
-  need(m.control_table, m.control_address, m.control_table == DriveSimTable::kCoils ? 16 : 1);
-  need(m.status_table, m.status_address, 1);
-  need(m.fault_code_table, m.fault_code_address, 1);
-  need(DriveSimTable::kHolding, m.speed_address, 1);
-  need(DriveSimTable::kHolding, m.target_address, 2);
-  need(m.position_table, m.position_address, 2);
+  need(m.control.table, m.control.address, m.control.table == ModbusTable::kCoils ? 16 : 1);
+  need(m.status.table, m.status.address, 1);
+  need(m.fault_code.table, m.fault_code.address, 1);
+  need(ModbusTable::kHolding, m.speed.address, 1);
+  need(ModbusTable::kHolding, m.target.address, 2);
+  need(m.position.table, m.position.address, 2);
   mapping_ = modbus_mapping_new(bits, 0, holding, input);
   if (mapping_ == nullptr) ThrowErrno("modbus_mapping_new");
   if (pipe2(wake_fds_, O_CLOEXEC | O_NONBLOCK) != 0) ThrowErrno("pipe2");
@@ -214,60 +214,65 @@ void DriveSim::Serve(uint8_t* request, int length) {
 
 void DriveSim::PublishOutputs() {
   const auto& m = config_.map;
+  const bool high_word_first = m.position.word_order == WordOrder::kHighFirst;
   const DriveModelState& s = model_.state();
-  auto reg = [&](DriveSimTable table, int address) -> uint16_t& {
-    return table == DriveSimTable::kInput ? mapping_->tab_input_registers[address]
-                                          : mapping_->tab_registers[address];
+  auto reg = [&](ModbusTable table, int address) -> uint16_t& {
+    return table == ModbusTable::kInput ? mapping_->tab_input_registers[address]
+                                        : mapping_->tab_registers[address];
   };
   uint16_t status = 0;
-  if (s.enabled) status |= 1u << m.enabled_bit;
-  if (s.homed) status |= 1u << m.homed_bit;
-  if (s.moving) status |= 1u << m.moving_bit;
-  if (s.fault) status |= 1u << m.fault_bit;
-  reg(m.status_table, m.status_address) = status;
-  reg(m.fault_code_table, m.fault_code_address) = static_cast<uint16_t>(s.fault_code);
-  const auto counts =
-      static_cast<uint32_t>(static_cast<int32_t>(std::lround(s.position_mm * m.counts_per_mm)));
+  if (s.enabled) status |= 1u << m.status.enabled_bit;
+  if (s.homed) status |= 1u << m.status.homed_bit;
+  if (s.moving) status |= 1u << m.status.moving_bit;
+  if (s.fault) status |= 1u << m.status.fault_bit;
+  reg(m.status.table, m.status.address) = status;
+  reg(m.fault_code.table, m.fault_code.address) = static_cast<uint16_t>(s.fault_code);
+  const auto counts = static_cast<uint32_t>(
+      static_cast<int32_t>(std::lround(s.position_mm * m.position.counts_per_mm)));
   const auto high = static_cast<uint16_t>(counts >> 16);
   const auto low = static_cast<uint16_t>(counts & 0xffffu);
-  reg(m.position_table, m.position_address) = m.high_word_first ? high : low;
-  reg(m.position_table, m.position_address + 1) = m.high_word_first ? low : high;
+  reg(m.position.table, m.position.address) = high_word_first ? high : low;
+  reg(m.position.table, m.position.address + 1) = high_word_first ? low : high;
 }
 
 void DriveSim::ApplyInputs(int64_t now_ns) {
   const auto& m = config_.map;
+  const bool high_word_first = m.position.word_order == WordOrder::kHighFirst;
   // Control: the enable level and self-clearing command bits.
-  const bool coils = m.control_table == DriveSimTable::kCoils;
+  const bool coils = m.control.table == ModbusTable::kCoils;
   auto bit = [&](int b) {
-    return coils ? mapping_->tab_bits[m.control_address + b] != 0
-                 : (mapping_->tab_registers[m.control_address] >> b) & 1u;
+    return coils ? mapping_->tab_bits[m.control.address + b] != 0
+                 : (mapping_->tab_registers[m.control.address] >> b) & 1u;
   };
   auto clear = [&](int b) {
     if (coils) {
-      mapping_->tab_bits[m.control_address + b] = 0;
+      mapping_->tab_bits[m.control.address + b] = 0;
     } else {
-      mapping_->tab_registers[m.control_address] &= static_cast<uint16_t>(~(1u << b));
+      mapping_->tab_registers[m.control.address] &= static_cast<uint16_t>(~(1u << b));
     }
   };
-  const uint16_t speed_counts = mapping_->tab_registers[m.speed_address];
+  const uint16_t speed_counts = mapping_->tab_registers[m.speed.address];
   if (speed_counts != applied_speed_counts_) {
     applied_speed_counts_ = speed_counts;
-    model_.SetSpeed(speed_counts / m.speed_counts_per_mm_s, now_ns);
+    model_.SetSpeed(speed_counts / m.speed.counts_per_mm_s, now_ns);
   }
-  if (bit(m.enable_bit) != model_.state().enabled) model_.SetEnabled(bit(m.enable_bit), now_ns);
-  if (bit(m.fault_reset_bit)) model_.ResetFault(now_ns);
-  if (bit(m.stop_bit)) {
+  if (bit(m.control.enable_bit) != model_.state().enabled)
+    model_.SetEnabled(bit(m.control.enable_bit), now_ns);
+  if (bit(m.control.fault_reset_bit)) model_.ResetFault(now_ns);
+  if (bit(m.control.stop_bit)) {
     model_.Stop(now_ns);
-  } else if (bit(m.home_bit)) {
+  } else if (bit(m.control.home_bit)) {
     model_.Home(now_ns);
-  } else if (bit(m.start_bit)) {
-    const uint16_t* t = &mapping_->tab_registers[m.target_address];
-    const uint32_t high = m.high_word_first ? t[0] : t[1];
-    const uint32_t low = m.high_word_first ? t[1] : t[0];
+  } else if (bit(m.control.start_bit)) {
+    const uint16_t* t = &mapping_->tab_registers[m.target.address];
+    const uint32_t high = high_word_first ? t[0] : t[1];
+    const uint32_t low = high_word_first ? t[1] : t[0];
     const auto target_counts = static_cast<int32_t>((high << 16) | low);
-    model_.Start(target_counts / m.counts_per_mm, now_ns);
+    model_.Start(target_counts / m.position.counts_per_mm, now_ns);
   }
-  for (int b : {m.fault_reset_bit, m.stop_bit, m.home_bit, m.start_bit}) clear(b);
+  for (int b :
+       {m.control.fault_reset_bit, m.control.stop_bit, m.control.home_bit, m.control.start_bit})
+    clear(b);
 }
 
 }  // namespace mirrorscan::virtual_cabinet

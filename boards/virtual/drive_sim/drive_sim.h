@@ -8,43 +8,17 @@
 #include <thread>
 
 #include "boards/virtual/drive_sim/drive_model.h"
+#include "common/modbus/register_map.h"
 
 typedef struct _modbus modbus_t;                    // NOLINT: libmodbus's own types
 typedef struct _modbus_mapping_t modbus_mapping_t;  // NOLINT
 
 namespace mirrorscan::virtual_cabinet {
 
-enum class DriveSimTable { kCoils, kHolding, kInput };
-
-// The simulated drive's register map; the same meaning as the firmware's
-// ModbusDriveConfig registers (docs/slide-drive.md). Defaults are that document's map.
-struct DriveSimRegisterMap {
-  DriveSimTable control_table = DriveSimTable::kHolding;  // holding word or coils
-  int control_address = 0;
-  int enable_bit = 0;
-  int home_bit = 1;
-  int start_bit = 2;
-  int stop_bit = 3;
-  int fault_reset_bit = 4;
-  DriveSimTable status_table = DriveSimTable::kInput;
-  int status_address = 0;
-  int enabled_bit = 0;
-  int homed_bit = 1;
-  int moving_bit = 2;
-  int fault_bit = 3;
-  DriveSimTable fault_code_table = DriveSimTable::kInput;
-  int fault_code_address = 1;
-  int speed_address = 1;  // holding, unsigned 16 bit
-  double speed_counts_per_mm_s = 10.0;
-  int target_address = 2;  // holding, signed 32 bit, position scale and word order
-  DriveSimTable position_table = DriveSimTable::kInput;
-  int position_address = 2;  // signed 32 bit
-  double counts_per_mm = 100.0;
-  bool high_word_first = true;
-};
-
 struct DriveSimConfig {
-  DriveSimRegisterMap map;
+  // The map it serves: the firmware's (board.json's drive.registers); by default that of
+  // docs/slide-drive.md.
+  ModbusRegisterMap map;
   DriveModelConfig model;
   int slave_id = 1;
 };

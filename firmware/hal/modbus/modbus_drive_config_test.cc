@@ -40,16 +40,16 @@ TEST(ModbusDriveConfigTest, ReadsTheDocumentedExample) {
   EXPECT_DOUBLE_EQ(c.max_speed_mm_s, 500.0);
   EXPECT_DOUBLE_EQ(c.travel_min_mm, 0.0);
   EXPECT_DOUBLE_EQ(c.travel_max_mm, 1900.0);
-  EXPECT_EQ(c.control.table, ModbusTable::kHolding);
-  EXPECT_EQ(c.control.fault_reset_bit, 4);
-  EXPECT_EQ(c.status.table, ModbusTable::kInput);
-  EXPECT_EQ(c.status.fault_bit, 3);
-  EXPECT_EQ(c.fault_code.address, 1);
-  EXPECT_DOUBLE_EQ(c.speed.counts_per_mm_s, 10.0);
-  EXPECT_EQ(c.target.address, 2);
-  EXPECT_EQ(c.position.address, 2);
-  EXPECT_DOUBLE_EQ(c.position.counts_per_mm, 100.0);
-  EXPECT_EQ(c.position.word_order, WordOrder::kHighFirst);
+  EXPECT_EQ(c.registers.control.table, ModbusTable::kHolding);
+  EXPECT_EQ(c.registers.control.fault_reset_bit, 4);
+  EXPECT_EQ(c.registers.status.table, ModbusTable::kInput);
+  EXPECT_EQ(c.registers.status.fault_bit, 3);
+  EXPECT_EQ(c.registers.fault_code.address, 1);
+  EXPECT_DOUBLE_EQ(c.registers.speed.counts_per_mm_s, 10.0);
+  EXPECT_EQ(c.registers.target.address, 2);
+  EXPECT_EQ(c.registers.position.address, 2);
+  EXPECT_DOUBLE_EQ(c.registers.position.counts_per_mm, 100.0);
+  EXPECT_EQ(c.registers.position.word_order, WordOrder::kHighFirst);
 }
 
 TEST(ModbusDriveConfigTest, ReadsAnRtuLink) {
@@ -67,8 +67,8 @@ TEST(ModbusDriveConfigTest, ReadsAnRtuLink) {
   EXPECT_EQ(c.baud, 19200);
   EXPECT_EQ(c.parity, 'E');
   EXPECT_EQ(c.data_bits, 8);
-  EXPECT_EQ(c.control.table, ModbusTable::kCoils);
-  EXPECT_EQ(c.position.word_order, WordOrder::kLowFirst);
+  EXPECT_EQ(c.registers.control.table, ModbusTable::kCoils);
+  EXPECT_EQ(c.registers.position.word_order, WordOrder::kLowFirst);
 }
 
 TEST(ModbusDriveConfigTest, ErrorsNameTheKey) {

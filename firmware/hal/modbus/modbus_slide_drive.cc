@@ -125,7 +125,7 @@ void ModbusSlideDrive::Transact(const std::string& what,
 }
 
 void ModbusSlideDrive::WriteControl(const std::string& what, int command_bit) {
-  const auto& ctl = config_.control;
+  const auto& ctl = config_.registers.control;
   if (ctl.table == ModbusTable::kCoils) {
     const int bit = command_bit >= 0 ? command_bit : ctl.enable_bit;
     const int value = command_bit >= 0 ? 1 : (enabled_ ? 1 : 0);
@@ -154,7 +154,7 @@ void ModbusSlideDrive::WriteInt32(const std::string& what, int address, int32_t 
   const auto bits = static_cast<uint32_t>(value);
   const auto high = static_cast<uint16_t>(bits >> 16);
   const auto low = static_cast<uint16_t>(bits & 0xffffu);
-  const bool high_first = config_.position.word_order == WordOrder::kHighFirst;
+  const bool high_first = config_.registers.position.word_order == WordOrder::kHighFirst;
   const uint16_t words[2] = {high_first ? high : low, high_first ? low : high};
   Transact("write " + what + " (holding " + std::to_string(address) + ")",
            [&](modbus_t* ctx) { return modbus_write_registers(ctx, address, 2, words); });
@@ -168,7 +168,7 @@ int32_t ModbusSlideDrive::ReadInt32(const std::string& what, ModbusTable table, 
                         ? modbus_read_input_registers(ctx, address, 2, words)
                         : modbus_read_registers(ctx, address, 2, words);
            });
-  const bool high_first = config_.position.word_order == WordOrder::kHighFirst;
+  const bool high_first = config_.registers.position.word_order == WordOrder::kHighFirst;
   const uint32_t high = high_first ? words[0] : words[1];
   const uint32_t low = high_first ? words[1] : words[0];
   return static_cast<int32_t>((high << 16) | low);
@@ -189,7 +189,7 @@ void ModbusSlideDrive::Enable(bool on) {
 
 void ModbusSlideDrive::StartHome() {
   std::lock_guard lock(mutex_);
-  WriteControl("home", config_.control.home_bit);
+  WriteControl("home", config_.registers.control.home_bit);
 }
 
 void ModbusSlideDrive::SetSpeed(double mm_per_s) {
@@ -198,15 +198,17 @@ void ModbusSlideDrive::SetSpeed(double mm_per_s) {
                                                     " mm/s outside (0, " +
                                                     std::to_string(config_.max_speed_mm_s) + "]");
   }
-  const long counts = std::lround(mm_per_s * config_.speed.counts_per_mm_s);
+  const long counts = std::lround(mm_per_s * config_.registers.speed.counts_per_mm_s);
   if (counts < 1 || counts > 65535) {
     throw HardwareError(Kind::kInvalidArgument, Describe() + ": speed " + std::to_string(mm_per_s) +
                                                     " mm/s is not representable in the register");
   }
   std::lock_guard lock(mutex_);
   const auto value = static_cast<uint16_t>(counts);
-  Transact("write speed (holding " + std::to_string(config_.speed.address) + ")",
-           [&](modbus_t* ctx) { return modbus_write_register(ctx, config_.speed.address, value); });
+  Transact("write speed (holding " + std::to_string(config_.registers.speed.address) + ")",
+           [&](modbus_t* ctx) {
+             return modbus_write_register(ctx, config_.registers.speed.address, value);
+           });
 }
 
 void ModbusSlideDrive::Start(double target_mm) {
@@ -217,31 +219,33 @@ void ModbusSlideDrive::Start(double target_mm) {
                             ", " + std::to_string(config_.travel_max_mm) + "] mm");
   }
   std::lock_guard lock(mutex_);
-  const auto counts = static_cast<int32_t>(std::lround(target_mm * config_.position.counts_per_mm));
-  WriteInt32("target", config_.target.address, counts);
-  WriteControl("start", config_.control.start_bit);
+  const auto counts =
+      static_cast<int32_t>(std::lround(target_mm * config_.registers.position.counts_per_mm));
+  WriteInt32("target", config_.registers.target.address, counts);
+  WriteControl("start", config_.registers.control.start_bit);
 }
 
 void ModbusSlideDrive::DoStop() {
   std::lock_guard lock(mutex_);
-  WriteControl("stop", config_.control.stop_bit);
+  WriteControl("stop", config_.registers.control.stop_bit);
 }
 
 void ModbusSlideDrive::ResetFault() {
   std::lock_guard lock(mutex_);
-  WriteControl("fault reset", config_.control.fault_reset_bit);
+  WriteControl("fault reset", config_.registers.control.fault_reset_bit);
 }
 
 double ModbusSlideDrive::Position() {
   std::lock_guard lock(mutex_);
-  const int32_t counts = ReadInt32("position", config_.position.table, config_.position.address);
-  return counts / config_.position.counts_per_mm;
+  const int32_t counts =
+      ReadInt32("position", config_.registers.position.table, config_.registers.position.address);
+  return counts / config_.registers.position.counts_per_mm;
 }
 
 SlideStatus ModbusSlideDrive::Status() {
   std::lock_guard lock(mutex_);
-  const auto& st = config_.status;
-  const auto& fc = config_.fault_code;
+  const auto& st = config_.registers.status;
+  const auto& fc = config_.registers.fault_code;
   uint16_t word = 0;
   uint16_t code = 0;
   if (fc.table == st.table && fc.address == st.address + 1) {

@@ -21,7 +21,6 @@ namespace {
 using virtual_cabinet::DriveSim;
 using virtual_cabinet::DriveSimConfig;
 using virtual_cabinet::DriveSimState;
-using virtual_cabinet::DriveSimTable;
 using Clock = std::chrono::steady_clock;
 using std::chrono::milliseconds;
 using std::chrono::seconds;
@@ -31,44 +30,10 @@ constexpr double kCountMm = 0.01;  // one position count at 100 counts/mm
 const std::string kFixture =
     std::string(MIRRORSCAN_SOURCE_DIR) + "/firmware/hal/modbus/testdata/board_drive.json";
 
-DriveSimTable SimTable(ModbusTable table) {
-  switch (table) {
-    case ModbusTable::kCoils:
-      return DriveSimTable::kCoils;
-    case ModbusTable::kHolding:
-      return DriveSimTable::kHolding;
-    case ModbusTable::kInput:
-      return DriveSimTable::kInput;
-  }
-  return DriveSimTable::kHolding;
-}
-
 // The simulator serving the register map the backend is configured with.
 DriveSimConfig SimConfigFor(const ModbusDriveConfig& c) {
   DriveSimConfig sim;
-  auto& m = sim.map;
-  m.control_table = SimTable(c.control.table);
-  m.control_address = c.control.address;
-  m.enable_bit = c.control.enable_bit;
-  m.home_bit = c.control.home_bit;
-  m.start_bit = c.control.start_bit;
-  m.stop_bit = c.control.stop_bit;
-  m.fault_reset_bit = c.control.fault_reset_bit;
-  m.status_table = SimTable(c.status.table);
-  m.status_address = c.status.address;
-  m.enabled_bit = c.status.enabled_bit;
-  m.homed_bit = c.status.homed_bit;
-  m.moving_bit = c.status.moving_bit;
-  m.fault_bit = c.status.fault_bit;
-  m.fault_code_table = SimTable(c.fault_code.table);
-  m.fault_code_address = c.fault_code.address;
-  m.speed_address = c.speed.address;
-  m.speed_counts_per_mm_s = c.speed.counts_per_mm_s;
-  m.target_address = c.target.address;
-  m.position_table = SimTable(c.position.table);
-  m.position_address = c.position.address;
-  m.counts_per_mm = c.position.counts_per_mm;
-  m.high_word_first = c.position.word_order == WordOrder::kHighFirst;
+  sim.map = c.registers;
   sim.model.min_mm = c.travel_min_mm;
   sim.model.max_mm = c.travel_max_mm;
   sim.model.max_speed_mm_s = c.max_speed_mm_s;
@@ -117,16 +82,16 @@ class ModbusSlideDriveTest : public ::testing::TestWithParam<Variant> {
     const Variant& v = GetParam();
     config_.response_timeout_s = 0.5;  // generous for qemu; the timeout test shortens it
     if (v.coils) {
-      config_.control.table = ModbusTable::kCoils;
-      config_.control.address = 16;  // coils 16..20
+      config_.registers.control.table = ModbusTable::kCoils;
+      config_.registers.control.address = 16;  // coils 16..20
     }
-    if (v.low_word_first) config_.position.word_order = WordOrder::kLowFirst;
+    if (v.low_word_first) config_.registers.position.word_order = WordOrder::kLowFirst;
     if (v.status_holding) {
-      config_.status.table = config_.fault_code.table = config_.position.table =
-          ModbusTable::kHolding;
-      config_.status.address = 10;
-      config_.fault_code.address = 12;  // not adjacent: read separately
-      config_.position.address = 20;
+      config_.registers.status.table = config_.registers.fault_code.table =
+          config_.registers.position.table = ModbusTable::kHolding;
+      config_.registers.status.address = 10;
+      config_.registers.fault_code.address = 12;  // not adjacent: read separately
+      config_.registers.position.address = 20;
     }
     StartSim();
   }
@@ -312,8 +277,8 @@ TEST_P(ModbusSlideDriveTest, SilentDriveTimesOutWithinTheBoundThenRecovers) {
 }
 
 TEST_P(ModbusSlideDriveTest, ModbusExceptionIsRejectedWithoutRetries) {
-  config_.fault_code.address = 500;  // the drive has no such register
-  config_.status.address = 400;
+  config_.registers.fault_code.address = 500;  // the drive has no such register
+  config_.registers.status.address = 400;
   auto drive = Connect();
   const uint64_t requests = sim_->State().requests;
   std::string message;
