@@ -103,12 +103,19 @@ else()
 endif()
 install(DIRECTORY ${_web_dir}/ DESTINATION share/mirrorscan/web COMPONENT mirrorscand)
 
+# Manual pages and changelog.Debian.gz as Debian policy wants them: gzip -9, no name or
+# time stamp (-n).
+function(_mirrorscan_gzip_9n file)
+  execute_process(COMMAND gzip -9nc ${file} OUTPUT_FILE ${file}.gz COMMAND_ERROR_IS_FATAL ANY)
+endfunction()
+configure_file(${_packaging_src}/mirrorscand.8 ${_packaging_out}/mirrorscand.8 @ONLY)
+_mirrorscan_gzip_9n(${_packaging_out}/mirrorscand.8)
+install(FILES ${_packaging_out}/mirrorscand.8.gz DESTINATION share/man/man8 COMPONENT mirrorscand)
+
 configure_file(${_packaging_src}/postinst.in ${_packaging_out}/postinst @ONLY)
 file(WRITE ${_packaging_out}/conffiles "${_conffiles}")
-configure_file(${_packaging_src}/changelog.in ${_packaging_out}/changelog @ONLY)
-# changelog.Debian.gz as Debian policy wants it: gzip -9, no name or time stamp (-n).
-execute_process(COMMAND gzip -9nc ${_packaging_out}/changelog
-                OUTPUT_FILE ${_packaging_out}/changelog.Debian.gz COMMAND_ERROR_IS_FATAL ANY)
+configure_file(${_packaging_src}/changelog.in ${_packaging_out}/changelog.Debian @ONLY)
+_mirrorscan_gzip_9n(${_packaging_out}/changelog.Debian)
 
 # --- mirrorscan (host program) ------------------------------------------------------------
 set(_components mirrorscand)
@@ -117,6 +124,9 @@ if(_deb_arch STREQUAL "amd64")
   install(TARGETS mirrorscan RUNTIME DESTINATION bin COMPONENT mirrorscan)
   install(FILES ${_packaging_src}/copyright-mirrorscan RENAME copyright
           DESTINATION share/doc/mirrorscan COMPONENT mirrorscan)
+  configure_file(${_packaging_src}/mirrorscan.1 ${_packaging_out}/mirrorscan.1 @ONLY)
+  _mirrorscan_gzip_9n(${_packaging_out}/mirrorscan.1)
+  install(FILES ${_packaging_out}/mirrorscan.1.gz DESTINATION share/man/man1 COMPONENT mirrorscan)
 endif()
 foreach(_component IN LISTS _components)
   install(FILES ${_packaging_out}/changelog.Debian.gz
