@@ -11,7 +11,9 @@ set(_packaging_src ${PROJECT_SOURCE_DIR}/cmake/packaging)
 set(_packaging_out ${CMAKE_BINARY_DIR}/packaging)
 file(MAKE_DIRECTORY ${_packaging_out})
 
-if(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
+if(MIRRORSCAN_SANITIZE)
+  return()  # no packages of sanitizer builds
+elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(aarch64|arm64)$")
   set(_deb_arch arm64)
   set(_deb_board rpi5)
 elseif(CMAKE_SYSTEM_PROCESSOR MATCHES "^(x86_64|AMD64|amd64)$" AND NOT MIRRORSCAN_FIRMWARE_ONLY)
