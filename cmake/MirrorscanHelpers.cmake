@@ -64,7 +64,8 @@ function(mirrorscan_add_benchmark)
       benchmark::benchmark_main)
 endfunction()
 
-# A shared library loaded at run time with dlopen (lib<NAME>.so in build/lib). It exports
+# A shared library loaded at run time with dlopen (lib<NAME>.so in build/lib/mirrorscan,
+# as installed: /usr/lib/mirrorscan, a private directory since it has no SONAME). It exports
 # only what is marked __attribute__((visibility("default"))); the static mirrorscan
 # libraries it links stay private to it (--exclude-libs) and must be built with
 # POSITION_INDEPENDENT_CODE.
@@ -73,7 +74,8 @@ function(mirrorscan_add_module)
   add_library(${ARG_NAME} MODULE ${ARG_SRCS})
   _mirrorscan_common(${ARG_NAME})
   set_target_properties(${ARG_NAME} PROPERTIES
-      CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON)
+      CXX_VISIBILITY_PRESET hidden VISIBILITY_INLINES_HIDDEN ON
+      LIBRARY_OUTPUT_DIRECTORY ${CMAKE_BINARY_DIR}/lib/mirrorscan)
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS})
   target_link_options(${ARG_NAME} PRIVATE -Wl,--exclude-libs,ALL -Wl,--no-undefined)
 endfunction()

@@ -62,7 +62,7 @@ std::filesystem::path LibcameraModulePath() {
   std::error_code ec;
   const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
   if (ec) Fail("libcamera module: cannot find the running executable: " + ec.message());
-  return exe.parent_path().parent_path() / "lib" / kLibcameraModuleFile;
+  return exe.parent_path().parent_path() / "lib" / "mirrorscan" / kLibcameraModuleFile;
 }
 
 std::unique_ptr<Camera> OpenLibcameraCamera(const std::string& camera_id) {

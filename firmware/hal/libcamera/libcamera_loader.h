@@ -7,8 +7,10 @@
 //
 // The module file is libmirrorscan_camera_libcamera.so, looked up in
 //   1. $MIRRORSCAN_MODULE_DIR, if that environment variable is set (and not empty);
-//   2. otherwise ../lib beside the running executable (build/bin -> build/lib, and
-//      /usr/bin -> /usr/lib for an installed board).
+//   2. otherwise ../lib/mirrorscan beside the running executable (build/bin ->
+//      build/lib/mirrorscan, and /usr/bin -> /usr/lib/mirrorscan as the mirrorscand
+//      package installs it: a private directory, since a module has no SONAME and does
+//      not belong in the linker's path).
 // It is loaded once and stays loaded for the life of the process (libcamera's camera
 // manager lives as long), so cameras it made stay valid.
 //

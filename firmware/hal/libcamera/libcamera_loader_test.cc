@@ -67,7 +67,7 @@ TEST(LibcameraLoader, TheBuildPutsTheModuleWhereTheLoaderLooks) {
   ASSERT_TRUE(fs::is_regular_file(module)) << module;
   EXPECT_EQ(module.filename(), kLibcameraModuleFile);
   ScopedModuleDir unset(std::nullopt);
-  // This test runs from build/bin; the module is in build/lib.
+  // This test runs from build/bin; the module is in build/lib/mirrorscan.
   EXPECT_TRUE(fs::equivalent(LibcameraModulePath(), module)) << LibcameraModulePath();
 }
 
