@@ -459,6 +459,8 @@ void Sequencer::StepArming() {
     counters_[i]->camera_dropped_at_start = devices_.cameras[i].camera->dropped();
   }
   supervisor_->Arm(watched, true);
+  lasers_on_since_ns_ = 0;  // the last sweep's times must not make this one's first frames lit
+  lasers_off_since_ns_ = 0;
   recording_ = true;
   devices_.lasers->SetAll(true);
   lasers_on_since_ns_ = hal::SteadyNowNs();
@@ -518,7 +520,9 @@ void Sequencer::OnFrame(int camera, hal::Frame frame) {
   // trip has made them safe since (the supervisor flags the trip before it drives the
   // lines off). The sequencer's own record, not a query of the laser bank per frame.
   const int64_t lasers_on_since_ns = lasers_on_since_ns_.load();
+  const int64_t lasers_off_since_ns = lasers_off_since_ns_.load();
   item.lasers_on = lasers_on_since_ns != 0 && frame.timestamp_ns() >= lasers_on_since_ns &&
+                   (lasers_off_since_ns == 0 || frame.timestamp_ns() < lasers_off_since_ns) &&
                    !supervisor_->tripped();
   item.frame = std::move(frame);
   if (!capture_queue_->TryPush(item)) ++counters_[camera]->queue_dropped;
@@ -568,7 +572,7 @@ void Sequencer::Fail(const std::string& reason) {
   trip.reason = reason;
   trip.detected_ns = hal::SteadyNowNs();
   // Dark in the records from here on, before Disarm() clears the supervisor's trip flag.
-  lasers_on_since_ns_ = 0;
+  lasers_off_since_ns_ = hal::SteadyNowNs();
   supervisor_->Disarm();
   devices_.lasers->SafeOff();
   trip.safe_ns = hal::SteadyNowNs();
@@ -586,7 +590,7 @@ void Sequencer::Fail(const std::string& reason) {
 
 void Sequencer::EndScan(SequencerState end, const std::string& reason) {
   recording_ = false;
-  lasers_on_since_ns_ = 0;  // as in Fail(): before Disarm() clears the trip flag
+  lasers_off_since_ns_ = hal::SteadyNowNs();  // as in Fail(): before Disarm() clears the trip flag
   supervisor_->Disarm();
   if (!devices_.lasers->SafeOff()) spdlog::critical("sequencer: a laser line did not go off");
   if (end != SequencerState::kDone) {

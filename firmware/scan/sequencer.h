@@ -174,10 +174,13 @@ class Sequencer final : public ScanControl {
   std::vector<std::unique_ptr<CameraCounters>> counters_;
   std::atomic<bool> recording_{false};  // frames go to the archive
   // The lasers' commanded state, owned by the control loop (OnFrame reads it instead of
-  // asking the laser bank per frame): when it switched them on in this sweep (steady ns),
-  // 0 once it switched them off. A frame whose exposure began earlier is recorded as
-  // lasers off even if it arrives after; so is every frame once the supervisor tripped.
+  // asking the laser bank per frame): when it switched them on in this sweep and when it
+  // began switching them off (steady ns, 0: not yet). A frame is lit when its exposure
+  // began between the two, judged by its timestamp and not by when it arrives (a frame in
+  // flight as the scan ends was exposed while the lasers were on); every frame is dark once
+  // the supervisor tripped.
   std::atomic<int64_t> lasers_on_since_ns_{0};
+  std::atomic<int64_t> lasers_off_since_ns_{0};
   std::vector<std::unique_ptr<std::atomic<int64_t>>> first_frame_ns_;
   std::atomic<bool> capture_busy_{false};
 
