@@ -419,7 +419,7 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
       // points there would confirm each other. A laser at the floor's height lights the
       // floor, which runs on under the mirrors' feet: that must be a way the peak can have
       // come about, or another laser would take the floor's stripe into the volume.
-      const bool floor = !cylinder.Contains(point) && cylinder.OnFloor(point);
+      const bool floor = cylinder.OnFloor(point);  // below the bottom: never Contains()
       if (!floor &&
           (!cylinder.Contains(point) || g.mirrors[0].SignedDistance(point) < mirror_clearance_mm ||
            g.mirrors[1].SignedDistance(point) < mirror_clearance_mm))
