@@ -40,6 +40,15 @@ struct CameraIntrinsics {
   }
 };
 
+// Rays through many pixels of one camera: its pose turned into a rotation matrix and a
+// centre once.
+struct CameraRays {
+  CameraIntrinsics intrinsics;
+  Eigen::Matrix3d world_from_cam_rotation;
+  Eigen::Vector3d center_in_world;
+  std::optional<Ray3d> Through(const Eigen::Vector2d& pixel) const;
+};
+
 struct Camera {
   CameraIntrinsics intrinsics;
   Rigid3d cam_from_world;
@@ -55,6 +64,7 @@ struct Camera {
   }
   // World ray through a pixel, starting at the camera centre.
   std::optional<Ray3d> RayThroughPixel(const Eigen::Vector2d& pixel) const;
+  CameraRays RaysThroughPixels() const;
 };
 
 }  // namespace mirrorscan

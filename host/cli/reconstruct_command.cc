@@ -27,6 +27,7 @@ struct ReconstructCliOptions {
   double prefer_camera = -1;
   bool icp = false;
   bool no_stereo = false;
+  bool no_free_space = false;
   double core_radius_mm = -1;
   double stereo_max_mm = -1;
   double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
@@ -61,6 +62,7 @@ void Run(const ReconstructCliOptions& o) {
   if (o.prefer_camera >= 0) options.prefer_camera_ratio = o.prefer_camera;
   options.icp = o.icp;
   options.stereo = !o.no_stereo;
+  options.free_space_check = !o.no_free_space;
   if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
@@ -129,6 +131,8 @@ void AddReconstructCommand(CLI::App& app) {
                 "Do not decide laser and view by what the other camera sees");
   cmd->add_option("--stereo-max-mm", o->stereo_max_mm,
                   "How near another camera's point of the same laser must be, mm (default 3)");
+  cmd->add_flag("--no-free-space-check", o->no_free_space,
+                "Keep points that other lasers at their pixel, or other views, see through");
   cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");
   cmd->add_flag("--json", o->json, "Print the summary as JSON (no progress)");
   cmd->callback([o] { Run(*o); });

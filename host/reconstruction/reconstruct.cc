@@ -43,9 +43,15 @@ struct Hypothesis {
   Eigen::Vector3d point;
   Eigen::Vector3d last_direction;  // the ray's last segment (towards the point)
   float sin_angle = 0;             // ray against the laser plane
+  float path_mm = 0;               // camera to point along the (unfolded) ray
   uint8_t key = 0;
   bool confirmed = false;  // another camera saw this laser there too
   bool floor = false;      // on the floor below the cylinder: never a point of the subject
+  // On a panel beside a mirror, where that laser's line runs: laser-height data that the
+  // fit did not take (another camera's line, a stretch it left out), never the subject.
+  bool panel = false;
+  // A surface that is not the subject: it decides a peak, and the point is dropped.
+  bool Background() const { return floor || panel; }
 };
 
 enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote, kStereo };
@@ -387,7 +393,12 @@ struct Geometry {
   std::vector<std::array<const CalibrationView*, 2>> mirror_views;
   std::array<Plane, 2> mirrors;
   std::vector<PlanarRectangle> mirror_rectangles;  // empty without corners
+  std::vector<PlanarRectangle> panels;             // empty without corners
 };
+
+// How close to a laser plane a ray's panel hit must be to be that laser's line there: the
+// panel's place is the calibration's estimate, the lasers are 200 mm apart.
+constexpr double kPanelLineMm = 10.0;
 
 // Every (view, laser) this peak could be, inside the bounding cylinder (or on the floor).
 void Hypothesize(const Geometry& g, const FrameRecord& frame,
@@ -407,8 +418,8 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
       break;
     }
   }
-  // Try each laser on one ray segment [0, t_max).
-  auto add = [&](const Ray3d& segment, double t_max, PointView view) {
+  // Try each laser on one ray segment [0, t_max), `path_before` along the ray from the camera.
+  auto add = [&](const Ray3d& segment, double t_max, double path_before, PointView view) {
     for (int k = 0; k < laser_count; ++k) {
       const auto t = IntersectRayPlane(segment, planes[k], 1.0);
       if (!t || *t >= t_max) continue;
@@ -429,27 +440,58 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
       h.point = point;
       h.last_direction = segment.direction;
       h.sin_angle = static_cast<float>(std::abs(planes[k].normal.dot(segment.direction)));
+      h.path_mm = static_cast<float>(path_before + *t);
+      h.key = static_cast<uint8_t>(Key(view, k));
+      out->push_back(h);
+    }
+    // The panels beside the mirrors carry every laser's line too: where the segment meets
+    // one before any mirror's glass, on a laser's plane, that laser's line is a way the
+    // peak can have come about (else another laser's point in front of the panel takes it).
+    double nearest = t_max;
+    const PlanarRectangle* panel = nullptr;
+    for (const PlanarRectangle& p : g.panels)
+      if (const auto t = p.Intersect(segment); t && *t < nearest) {
+        nearest = *t;
+        panel = &p;
+      }
+    if (!panel) return;
+    for (const PlanarRectangle& m : g.mirror_rectangles)
+      if (const auto t = m.Intersect(segment); t && *t < nearest) return;
+    const Eigen::Vector3d on_panel = segment.At(nearest);
+    for (int k = 0; k < laser_count; ++k) {
+      if (std::abs(planes[k].SignedDistance(on_panel)) > kPanelLineMm) continue;
+      Hypothesis h;
+      h.panel = true;
+      h.point = on_panel;
+      h.last_direction = segment.direction;
+      h.sin_angle = static_cast<float>(std::abs(planes[k].normal.dot(segment.direction)));
+      h.path_mm = static_cast<float>(path_before + nearest);
       h.key = static_cast<uint8_t>(Key(view, k));
       out->push_back(h);
     }
   };
   constexpr double kFar = 1e7;
   if (peak->region == 0) {
-    add(*ray, kFar, PointView::kCenter);
+    add(*ray, kFar, 0.0, PointView::kCenter);
   } else {
     const int a = peak->region - 1;
     const int b = 1 - a;
     const auto t_a = IntersectRayPlane(*ray, g.mirrors[a], 0.0);
     if (t_a) {
-      // Something in front of the mirror (an arm reaching into its region).
-      add(*ray, *t_a, PointView::kCenter);
+      // Something in front of the mirror (an arm reaching into its region), or, where the
+      // ray passes below or beside the glass (the region's outline is not the glass), a
+      // panel behind it. The mirror's view stays a hypothesis either way: the outline and
+      // the corners are both measured.
+      const bool meets_glass =
+          g.mirror_rectangles.empty() || g.mirror_rectangles[a].Intersect(*ray).has_value();
+      add(*ray, meets_glass ? *t_a : kFar, 0.0, PointView::kCenter);
       const Ray3d once{ray->At(*t_a), g.mirrors[a].ReflectDirection(ray->direction)};
       std::optional<double> t_b;
       if (!g.mirror_rectangles.empty()) t_b = g.mirror_rectangles[b].Intersect(once);
-      add(once, t_b.value_or(kFar), a == 0 ? PointView::kLeft : PointView::kRight);
+      add(once, t_b.value_or(kFar), *t_a, a == 0 ? PointView::kLeft : PointView::kRight);
       if (t_b) {
         const Ray3d twice{once.At(*t_b), g.mirrors[b].ReflectDirection(once.direction)};
-        add(twice, kFar, a == 0 ? PointView::kLeftRight : PointView::kRightLeft);
+        add(twice, kFar, *t_a + *t_b, a == 0 ? PointView::kLeftRight : PointView::kRightLeft);
       }
     }
   }
@@ -614,11 +656,12 @@ void DecideAlone(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& h
       p.rule = Rule::kStereo;
       continue;
     }
-    // The floor is a surface too: a floor hypothesis leaves the core no single answer.
+    // The floor and the panels are surfaces too: such a hypothesis leaves the core no single
+    // answer.
     int in_core = 0, last_in_core = -1;
     for (int h = 0; h < p.hypotheses; ++h) {
       if ((confirmed == 0 || first[h].confirmed) &&
-          (first[h].floor || cylinder.CoreContains(first[h].point))) {
+          (first[h].Background() || cylinder.CoreContains(first[h].point))) {
         ++in_core;
         last_in_core = h;
       }
@@ -687,14 +730,15 @@ struct PeakTable {
   // Per archive frame: the next frame of the same camera (or -1).
   std::vector<int32_t> next_frame;
 
-  std::pair<uint32_t, uint32_t> Column(uint32_t frame, uint16_t u) const {
-    const auto begin = peaks.begin() + frame_first[frame];
-    const auto end = peaks.begin() + frame_first[frame + 1];
-    const auto lo =
-        std::lower_bound(begin, end, u, [](const PeakState& a, uint16_t x) { return a.u < x; });
-    auto hi = lo;
-    while (hi != end && hi->u == u) ++hi;
-    return {static_cast<uint32_t>(lo - peaks.begin()), static_cast<uint32_t>(hi - peaks.begin())};
+  // Per archive frame and column u in [0, columns], the first peak at u or right of it.
+  int columns = 1;
+  std::vector<uint32_t> column_first;
+
+  // The frame's peaks in column u: [first, last).
+  std::pair<uint32_t, uint32_t> Column(uint32_t frame, int u) const {
+    if (u < 0 || u >= columns) return {0, 0};
+    const size_t at = static_cast<size_t>(frame) * (columns + 1) + u;
+    return {column_first[at], column_first[at + 1]};
   }
 };
 
@@ -722,6 +766,16 @@ PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_fr
     std::sort(
         table.peaks.begin() + table.frame_first[f], table.peaks.begin() + table.frame_first[f + 1],
         [](const PeakState& a, const PeakState& b) { return a.u != b.u ? a.u < b.u : a.v < b.v; });
+  }
+  for (const PeakState& p : table.peaks) table.columns = std::max(table.columns, p.u + 1);
+  const size_t stride = table.columns + 1;
+  table.column_first.resize(n * stride);
+  for (size_t f = 0; f < n; ++f) {
+    uint32_t i = table.frame_first[f];
+    for (int u = 0; u <= table.columns; ++u) {
+      while (i < table.frame_first[f + 1] && table.peaks[i].u < u) ++i;
+      table.column_first[f * stride + u] = i;
+    }
   }
   // Frames of one camera in time order.
   table.next_frame.assign(n, -1);
@@ -1032,6 +1086,142 @@ void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, Uni
   }
 }
 
+// Per camera and image column, what the decided peaks saw along their pixel's ray: the
+// row and the path length, rows ascending. A pixel's ray meets one surface first, whatever
+// laser lights it and whenever.
+class SeenAlongRays {
+ public:
+  struct Seen {
+    float v;
+    float path_mm;
+    uint8_t laser;
+  };
+
+  SeenAlongRays(const ScanArchive& archive, const PeakTable& table,
+                const std::vector<Hypothesis>& hyp, size_t cameras) {
+    int width = 1;
+    for (const PeakState& p : table.peaks) width = std::max(width, p.u + 1);
+    width_ = width;
+    first_.assign(cameras * width_ + 1, 0);
+    auto slot = [&](const PeakState& p) { return archive.frames[p.frame].camera * width_ + p.u; };
+    for (const PeakState& p : table.peaks)
+      if (p.chosen >= 0) ++first_[slot(p) + 1];
+    for (size_t i = 1; i < first_.size(); ++i) first_[i] += first_[i - 1];
+    seen_.resize(first_.back());
+    std::vector<uint32_t> fill(first_.begin(), first_.end() - 1);
+    for (const PeakState& p : table.peaks) {
+      if (p.chosen < 0) continue;
+      const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+      seen_[fill[slot(p)]++] = {p.v, h.path_mm, static_cast<uint8_t>(h.key % kMaxLasers)};
+    }
+    for (size_t i = 0; i + 1 < first_.size(); ++i)
+      std::sort(seen_.begin() + first_[i], seen_.begin() + first_[i + 1],
+                [](const Seen& a, const Seen& b) { return a.v < b.v; });
+  }
+
+  // Calls f for every peak seen in the camera's column u within rows of v.
+  template <typename F>
+  void ForEachNear(size_t camera, int u, double v, double rows, F f) const {
+    if (u < 0 || u >= width_) return;
+    const auto begin = seen_.begin() + first_[camera * width_ + u];
+    const auto end = seen_.begin() + first_[camera * width_ + u + 1];
+    const float lo = static_cast<float>(v - rows);
+    for (auto it = std::lower_bound(begin, end, lo, [](const Seen&s, float x) { return s.v < x; });
+         it != end && it->v <= v + rows; ++it)
+      f(*it);
+  }
+
+ private:
+  size_t width_ = 1;
+  std::vector<uint32_t> first_;  // per (camera, column), and one past the end
+  std::vector<Seen> seen_;
+};
+
+// Free space: a point is only where the rays through it saw nothing behind it. At its own
+// pixel the other lasers light the same first surface, so their path lengths must agree
+// with its own; and where another camera, or a mirror's view, looks through the point and
+// sees further, it is not there, unless some view sees it. Wrong lasers and views that the
+// vote carried along a whole label (an arm in front of a mirror taken for the torso in it, a
+// laser taken for the next one consistently over many frames) fail one or the other. Both
+// judge every point against the same set, before any is dropped.
+void DropPointsSeenThrough(const Geometry& g, const ScanArchive& archive, const PeakTable& table,
+                           const std::vector<Hypothesis>& hyp, const ReconstructOptions& options,
+                           std::vector<PeakState>* peaks, size_t* dropped) {
+  const SeenAlongRays seen(archive, table, hyp, g.cameras.size());
+  const double rows = options.free_space_rows_px;
+  const double tolerance_mm = options.free_space_mm;
+  struct View {
+    const Camera* camera;
+    Eigen::Matrix3d cam_from_world_rotation;
+    Eigen::Vector3d cam_from_world_translation;
+    Eigen::Vector3d center;
+  };
+  std::vector<View> views;
+  for (const CalibrationCamera* c : g.cameras) {
+    if (!c) {
+      views.push_back({nullptr, {}, {}, {}});
+      continue;
+    }
+    views.push_back({&c->camera, c->camera.cam_from_world.rotation.toRotationMatrix(),
+                     c->camera.cam_from_world.translation, c->camera.CenterInWorld()});
+  }
+  std::vector<uint32_t> drop;
+  for (uint32_t i = 0; i < peaks->size(); ++i) {
+    const PeakState& p = (*peaks)[i];
+    if (p.chosen < 0) continue;
+    const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+    if (h.Background()) continue;
+    const int laser = h.key % kMaxLasers;
+    const size_t own_camera = archive.frames[p.frame].camera;
+    size_t others = 0, agree = 0;
+    seen.ForEachNear(own_camera, p.u, p.v, rows, [&](const SeenAlongRays::Seen& s) {
+      if (s.laser == laser) return;
+      ++others;
+      if (std::abs(s.path_mm - h.path_mm) <= tolerance_mm * (1.0 + std::abs(s.v - p.v))) ++agree;
+    });
+    if (others > 0 && agree == 0) {
+      drop.push_back(i);
+      continue;
+    }
+    // The other camera confirmed it: some view sees it.
+    if (h.confirmed || agree > 0) continue;
+    size_t through = 0, seen_there = 0;
+    const PointView own_view = static_cast<PointView>(h.key / kMaxLasers);
+    for (size_t c = 0; c < views.size() && seen_there == 0; ++c) {
+      if (!views[c].camera) continue;
+      for (int w = 0; w < 3 && seen_there == 0; ++w) {
+        if (c == own_camera && w == static_cast<int>(own_view)) continue;
+        if (w > 0 && g.mirror_rectangles.empty()) continue;
+        const Eigen::Vector3d point = w == 0 ? h.point : g.mirrors[w - 1].ReflectPoint(h.point);
+        const Eigen::Vector3d towards = point - views[c].center;
+        const double path = towards.norm();
+        // A mirror's view sees the point only through its glass.
+        if (w > 0) {
+          const auto t =
+              g.mirror_rectangles[w - 1].Intersect(Ray3d{views[c].center, towards / path});
+          if (!t || *t > path) continue;
+        }
+        const auto pixel = views[c].camera->intrinsics.Project(
+            views[c].cam_from_world_rotation * point + views[c].cam_from_world_translation);
+        if (!pixel || !views[c].camera->intrinsics.InImage(*pixel)) continue;
+        seen.ForEachNear(c, static_cast<int>(std::lround(pixel->x())), pixel->y(), rows,
+                         [&](const SeenAlongRays::Seen& s) {
+                           const double tolerance =
+                               tolerance_mm * (1.0 + std::abs(s.v - pixel->y()));
+                           if (std::abs(s.path_mm - path) <= tolerance) {
+                             ++seen_there;
+                           } else if (s.path_mm > path + tolerance) {
+                             ++through;
+                           }
+                         });
+      }
+    }
+    if (seen_there == 0 && through >= 2) drop.push_back(i);
+  }
+  for (uint32_t i : drop) (*peaks)[i].chosen = -1;
+  *dropped += drop.size();
+}
+
 // Output points with their place in the (column, frame) grid.
 struct GridPoint {
   uint32_t peak = 0;
@@ -1087,9 +1277,8 @@ class Grid {
     int32_t frame = static_cast<int32_t>(p.frame);
     if (df > 0) frame = table_.next_frame[frame];
     if (df < 0) frame = previous_frame_[frame];
-    const int u = p.u + du;
-    if (frame < 0 || u < 0 || u > 65535) return -1;
-    const auto [lo, hi] = table_.Column(static_cast<uint32_t>(frame), static_cast<uint16_t>(u));
+    if (frame < 0) return -1;
+    const auto [lo, hi] = table_.Column(static_cast<uint32_t>(frame), p.u + du);
     int32_t best = -1;
     double best_dv = max_dv;
     for (uint32_t j = lo; j < hi; ++j) {
@@ -1230,6 +1419,8 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
       g.mirror_rectangles.push_back(MirrorRectangle(
           m.name, m.plane, {m.corners_mm[0], m.corners_mm[1], m.corners_mm[2], m.corners_mm[3]}));
     }
+    g.panels =
+        LaserCabinetFromCalibration(calibration, "calibration", options.panel_margin_mm).panels;
   } else {
     summary.warnings.push_back(
         "the calibration has no mirror corners: rays through both mirrors are not followed");
@@ -1253,11 +1444,14 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   progress("rays", 0.0);
   // Each peak undistorted and back-projected once, for the laser fit and the hypotheses.
   std::vector<std::optional<Ray3d>> rays(table.peaks.size());
+  std::vector<std::optional<CameraRays>> camera_rays(g.cameras.size());
+  for (size_t c = 0; c < g.cameras.size(); ++c)
+    if (g.cameras[c]) camera_rays[c] = g.cameras[c]->camera.RaysThroughPixels();
   for (size_t f = 0; f < archive.frames.size(); ++f) {
     if (!use_frame[f]) continue;
-    const Camera& camera = g.cameras[archive.frames[f].camera]->camera;
+    const CameraRays& camera = *camera_rays[archive.frames[f].camera];
     for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i)
-      rays[i] = camera.RayThroughPixel({table.peaks[i].u, table.peaks[i].v});
+      rays[i] = camera.Through({table.peaks[i].u, table.peaks[i].v});
   }
   stopwatch.Lap("rays");
   progress("laser heights", 0.0);
@@ -1314,13 +1508,20 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
     if (p.rule == Rule::kLabelVote) ++summary.decided_by_label_vote;
   }
   stopwatch.Lap("correspondence");
+  if (options.free_space_check) {
+    progress("free space", 0.0);
+    DropPointsSeenThrough(g, archive, table, hyp, options, &table.peaks,
+                          &summary.dropped_seen_through);
+    stopwatch.Lap("free space");
+  }
   progress("filtering", 0.0);
 
   for (PeakState& p : table.peaks) {
-    if (p.chosen >= 0 && hyp[p.first_hypothesis + p.chosen].floor) {
-      p.chosen = -1;
-      ++summary.dropped_floor;
-    }
+    if (p.chosen < 0) continue;
+    const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+    if (h.floor) ++summary.dropped_floor;
+    if (h.panel) ++summary.dropped_panel;
+    if (h.Background()) p.chosen = -1;
   }
   Grid grid(table, hyp);
   grid.Link(options.label_max_row_step_px, options.label_max_frame_step_px);
@@ -1544,6 +1745,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"ambiguous", s.dropped_ambiguous},
             {"conflict", s.dropped_conflict},
             {"unsupported", s.dropped_unsupported},
+            {"seen_through", s.dropped_seen_through},
             {"flat_angle", s.dropped_flat_angle},
             {"other_camera", s.dropped_other_camera},
             {"stripe_end", s.dropped_stripe_end},
@@ -1587,10 +1789,11 @@ std::string SummaryText(const ReconstructSummary& s) {
   text += Format(
       "  dropped: panel %zu, no ray %zu, outside volume %zu, floor %zu, ambiguous %zu, conflict "
       "%zu, "
-      "unsupported %zu, flat angle %zu, other camera better %zu, stripe end %zu, outlier %zu\n",
+      "unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, stripe end "
+      "%zu, outlier %zu\n",
       s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_floor, s.dropped_ambiguous,
-      s.dropped_conflict, s.dropped_unsupported, s.dropped_flat_angle, s.dropped_other_camera,
-      s.dropped_stripe_end, s.dropped_outlier);
+      s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through, s.dropped_flat_angle,
+      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

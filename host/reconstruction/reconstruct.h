@@ -123,6 +123,13 @@ struct ReconstructOptions {
   // No subject stands closer than this in front of a mirror's glass: there every camera's
   // reflected rays run close together and phantom points confirm each other.
   double mirror_clearance_mm = 80.0;
+  // Free space (docs/reconstruction.md): a point is dropped where the other lasers at its
+  // own pixel (within free_space_rows_px rows) all see another surface, or where other views
+  // look through it (see further by more than free_space_mm, per row off that much more)
+  // and no view sees it.
+  bool free_space_check = true;
+  double free_space_rows_px = 3.0;
+  double free_space_mm = 20.0;
   // Neighbours in (column, frame) belong to one label when their rows differ less than this.
   double label_max_row_step_px = 3.0;
   double label_max_frame_step_px = 20.0;
@@ -192,6 +199,8 @@ struct ReconstructSummary {
   size_t dropped_conflict = 0;   // its label's vote is not among its hypotheses
   // Its label's vote lands nowhere near (~10–20 mm) a peak decided without the vote.
   size_t dropped_unsupported = 0;
+  // The other lasers at its pixel see another surface, or other views see through it.
+  size_t dropped_seen_through = 0;
   size_t dropped_flat_angle = 0;    // ray too flat to the laser plane
   size_t dropped_other_camera = 0;  // another camera sees the place at a better angle
   size_t dropped_stripe_end = 0;
