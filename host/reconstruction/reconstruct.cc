@@ -388,9 +388,38 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
   return planes;
 }
 
+// A view region's outline cut by every image column: where the vertical line through the
+// column crosses the outline, rows ascending. A pixel is inside when an odd number of them
+// lie above it (the even–odd rule of CalibrationView::Contains, along the column).
+class RegionColumns {
+ public:
+  RegionColumns() = default;
+  RegionColumns(const CalibrationView& view, int width) : crossings_(width) {
+    const std::vector<Eigen::Vector2d>& outline = view.outline_px;
+    for (int u = 0; u < width; ++u) {
+      for (size_t i = 0, j = outline.size() - 1; i < outline.size(); j = i++) {
+        const Eigen::Vector2d& a = outline[i];
+        const Eigen::Vector2d& b = outline[j];
+        if ((a.x() > u) == (b.x() > u)) continue;
+        crossings_[u].push_back(a.y() + (u - a.x()) * (b.y() - a.y()) / (b.x() - a.x()));
+      }
+      std::sort(crossings_[u].begin(), crossings_[u].end());
+    }
+  }
+  bool Contains(int u, double v) const {
+    if (u < 0 || u >= static_cast<int>(crossings_.size())) return false;
+    const std::vector<double>& c = crossings_[u];
+    return (std::upper_bound(c.begin(), c.end(), v) - c.begin()) % 2 == 1;
+  }
+
+ private:
+  std::vector<std::vector<double>> crossings_;
+};
+
 struct Geometry {
   std::vector<const CalibrationCamera*> cameras;
   std::vector<std::array<const CalibrationView*, 2>> mirror_views;
+  std::vector<std::array<RegionColumns, 2>> mirror_regions;  // the same, by column
   std::array<Plane, 2> mirrors;
   std::vector<PlanarRectangle> mirror_rectangles;  // empty without corners
   std::vector<PlanarRectangle> panels;             // empty without corners
@@ -405,7 +434,6 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
                  const std::array<Plane, kMaxLasers>& planes, int laser_count,
                  const BoundingCylinder& cylinder, double mirror_clearance_mm,
                  const std::optional<Ray3d>& ray, PeakState* peak, std::vector<Hypothesis>* out) {
-  const Eigen::Vector2d pixel(peak->u, peak->v);
   peak->first_hypothesis = static_cast<uint32_t>(out->size());
   if (!ray) {
     peak->no_ray = true;
@@ -413,7 +441,7 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
   }
   peak->region = 0;
   for (int m = 0; m < 2; ++m) {
-    if (g.mirror_views[frame.camera][m]->Contains(pixel)) {
+    if (g.mirror_regions[frame.camera][m].Contains(peak->u, peak->v)) {
       peak->region = static_cast<uint8_t>(m + 1);
       break;
     }
@@ -1132,7 +1160,7 @@ class SeenAlongRays {
   }
 
  private:
-  size_t width_ = 1;
+  int width_ = 1;
   std::vector<uint32_t> first_;  // per (camera, column), and one past the end
   std::vector<Seen> seen_;
 };
@@ -1159,7 +1187,8 @@ void DropPointsSeenThrough(const Geometry& g, const ScanArchive& archive, const 
   std::vector<View> views;
   for (const CalibrationCamera* c : g.cameras) {
     if (!c) {
-      views.push_back({nullptr, {}, {}, {}});
+      views.push_back({nullptr, Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero(),
+                       Eigen::Vector3d::Zero()});
       continue;
     }
     views.push_back({&c->camera, c->camera.cam_from_world.rotation.toRotationMatrix(),
@@ -1412,6 +1441,12 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   Geometry g;
   g.cameras = CamerasOf(archive, calibration);
   g.mirror_views = MirrorViewsOf(g.cameras, calibration);
+  g.mirror_regions.resize(g.cameras.size());
+  for (size_t c = 0; c < g.cameras.size(); ++c)
+    if (g.cameras[c])
+      for (int m = 0; m < 2; ++m)
+        g.mirror_regions[c][m] =
+            RegionColumns(*g.mirror_views[c][m], g.cameras[c]->camera.intrinsics.width);
   for (int m = 0; m < 2; ++m) g.mirrors[m] = calibration.mirrors[m].plane;
   if (std::all_of(calibration.mirrors.begin(), calibration.mirrors.end(),
                   [](const CalibrationMirror& m) { return m.corners_mm.size() == 4; })) {
