@@ -32,6 +32,7 @@ struct ReconstructCliOptions {
   double stereo_max_mm = -1;
   double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
   double min_angle_deg = -1;
+  double min_confidence = -1;
 };
 
 void Run(const ReconstructCliOptions& o) {
@@ -63,6 +64,7 @@ void Run(const ReconstructCliOptions& o) {
   options.icp = o.icp;
   options.stereo = !o.no_stereo;
   options.free_space_check = !o.no_free_space;
+  if (o.min_confidence >= 0) options.min_confidence = o.min_confidence;
   if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
@@ -131,6 +133,9 @@ void AddReconstructCommand(CLI::App& app) {
                 "Do not decide laser and view by what the other camera sees");
   cmd->add_option("--stereo-max-mm", o->stereo_max_mm,
                   "How near another camera's point of the same laser must be, mm (default 3)");
+  cmd->add_option("--min-confidence", o->min_confidence,
+                  "Drop points whose confidence is below this (default 0: keep all)")
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--no-free-space-check", o->no_free_space,
                 "Keep points that other lasers at their pixel, or other views, see through");
   cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");

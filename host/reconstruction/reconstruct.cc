@@ -698,9 +698,12 @@ void DecideAlone(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& h
     // The direct ray in a mirror's region meets the other lasers' planes in the air beside
     // whatever stands in front of the mirror, often inside the core: no proof while the
     // mirror's view has a hypothesis further out (a hand seen in the mirror).
-    if (p.region != 0 && is_direct(first[last_in_core]) &&
-        std::any_of(first, first + p.hypotheses,
-                    [&](const Hypothesis& x) { return !is_direct(x); }))
+    // And the other way round: the mirror's view meets a laser's plane inside the core, in
+    // the air in front of the legs, while the truth is a hand in front of the mirror, outside
+    // the core.
+    if (p.region != 0 && std::any_of(first, first + p.hypotheses, [&](const Hypothesis& x) {
+          return !x.Background() && is_direct(x) != is_direct(first[last_in_core]);
+        }))
       continue;
     p.chosen = static_cast<int16_t>(last_in_core);
     p.rule = Rule::kCylinder;
@@ -1187,8 +1190,8 @@ void DropPointsSeenThrough(const Geometry& g, const ScanArchive& archive, const 
   std::vector<View> views;
   for (const CalibrationCamera* c : g.cameras) {
     if (!c) {
-      views.push_back({nullptr, Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero(),
-                       Eigen::Vector3d::Zero()});
+      views.push_back(
+          {nullptr, Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()});
       continue;
     }
     views.push_back({&c->camera, c->camera.cam_from_world.rotation.toRotationMatrix(),
@@ -1720,6 +1723,10 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
     const double end_factor =
         std::min(1.0, (end_distance[i] + 1.0) / (options.stripe_end_columns + 2.0));
     cp.confidence = static_cast<float>(std::clamp(p.score * angle_factor * end_factor, 0.0, 1.0));
+    if (cp.confidence < options.min_confidence) {
+      ++summary.dropped_low_confidence;
+      continue;
+    }
     ++summary.points_per_camera[cp.camera];
     ++summary.points_per_view[static_cast<int>(cp.view)];
     ++summary.points_per_laser[cp.laser];
@@ -1784,6 +1791,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"flat_angle", s.dropped_flat_angle},
             {"other_camera", s.dropped_other_camera},
             {"stripe_end", s.dropped_stripe_end},
+            {"low_confidence", s.dropped_low_confidence},
             {"outlier", s.dropped_outlier}}},
           {"double_bounce", s.double_bounce},
           {"laser_height",
@@ -1823,12 +1831,11 @@ std::string SummaryText(const ReconstructSummary& s) {
       s.decided_by_label_vote);
   text += Format(
       "  dropped: panel %zu, no ray %zu, outside volume %zu, floor %zu, ambiguous %zu, conflict "
-      "%zu, "
-      "unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, stripe end "
-      "%zu, outlier %zu\n",
+      "%zu, unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, stripe "
+      "end %zu, outlier %zu, low confidence %zu\n",
       s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_floor, s.dropped_ambiguous,
       s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through, s.dropped_flat_angle,
-      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier);
+      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier, s.dropped_low_confidence);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

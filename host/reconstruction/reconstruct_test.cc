@@ -349,6 +349,13 @@ TEST(Reconstruct, FiltersAreSwitchable) {
   const Reconstruction trimmed = Reconstruct(sweep.archive, sweep.calibration, ends);
   EXPECT_GT(trimmed.summary.dropped_stripe_end, 0u);
   EXPECT_LT(trimmed.summary.points, filtered.summary.points);
+  ReconstructOptions confident;
+  confident.min_confidence = 0.15;
+  const Reconstruction sure = Reconstruct(sweep.archive, sweep.calibration, confident);
+  EXPECT_EQ(filtered.summary.dropped_low_confidence, 0u);
+  EXPECT_GT(sure.summary.dropped_low_confidence, 0u);
+  EXPECT_EQ(sure.summary.points + sure.summary.dropped_low_confidence, filtered.summary.points);
+  for (const CloudPoint& p : sure.cloud.points) ASSERT_GE(p.confidence, 0.15f);
 }
 
 TEST(Reconstruct, CalibrationOfAnotherCabinetIsRefused) {
