@@ -1617,8 +1617,11 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
         const int32_t b = grid.Neighbour(gp, -du, -df);
         if (a >= 0 || b >= 0) isolated = false;
         if (a < 0 || b < 0) continue;
-        best =
-            std::min(best, (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm());
+        // Less a share of the chord: a curved surface sampled coarsely (successive frames far
+        // apart where the plane grazes it) bends away from the chord's midpoint by chord² / 8R.
+        const double chord = (grid.points[a].point - grid.points[b].point).norm();
+        const double off = (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm();
+        best = std::min(best, std::max(0.0, off - options.outlier_chord_share * chord));
       }
       if (isolated) {
         residual[i] = std::numeric_limits<double>::infinity();

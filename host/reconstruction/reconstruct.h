@@ -138,6 +138,8 @@ struct ReconstructOptions {
   bool remove_outliers = true;  // statistical, against the (column, frame) neighbours
   double outlier_sigmas = 4.0;
   double outlier_min_mm = 0.5;  // never an outlier closer than this to its neighbours
+  // The distance from the neighbours' midpoint less this share of their distance apart.
+  double outlier_chord_share = 0.1;
   // The last columns of a stripe leave the plane's trace; they get a low confidence and are
   // dropped only when asked.
   bool drop_stripe_ends = false;
