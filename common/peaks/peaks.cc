@@ -749,7 +749,8 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   RowSink sink{this, &search, &params, &candidates_, &peaks_};
   if (simd) {
     // Rows in order; each row's candidates are refined while its rows are in cache.
-    peaks_internal::FindCandidatesSimd(search, &candidates_, &PeakExtractor::RefineRow, &sink);
+    peaks_internal::FindCandidatesSimd(search, &simd_scratch_, &candidates_,
+                                       &PeakExtractor::RefineRow, &sink);
   } else {
     // Plain reference: walk each column.
     for (int u = roi.x0; u < roi.x1; ++u) {
