@@ -44,7 +44,39 @@ struct Figures {
   // Wide conditions only: over the clean peaks whose rendered stripe is >= kBrightDn.
   double bright_rms = 0, bright_recall = 0;
   int bright_peaks = 0;
+  // Wide conditions only: the Cramér–Rao bound of one column's row (RowBound), as an RMS
+  // over the same peaks, all and bright.
+  double bound_rms = 0, bright_bound_rms = 0;
 };
+
+// The Cramér–Rao bound (a standard deviation, px) of the row of the stripe crossing column u
+// near row v, from that column's samples alone: 1 / sqrt(sum over rows of (d mu / d v)^2 /
+// var), mu the noise-free image (lasers on, RenderRadiance: no speckle) clipped at 255, the
+// stripe taken to move rigidly (d mu / d v = -d(lit - dark) / d row, a 5-point derivative,
+// 0 where mu clips), var = read^2 + mu / electrons_per_dn + 1/12 (the sensor's read and
+// shot noise and the 8-bit rounding; speckle, which scales a column's stripe as a whole,
+// left out). No estimator reading the column alone does better on average; the
+// along-stripe fit over 2m + 1 columns, each with its own noise, can reach this times
+// sqrt(sum of its weights squared) (0.456 at m = 5) where the stripe is a quadratic.
+double RowBound(const virtual_cabinet::FloatImage& lit, const virtual_cabinet::FloatImage& dark,
+                const virtual_cabinet::Sensor& sensor, int u, double v) {
+  const int centre = static_cast<int>(std::lround(v));
+  auto light = [&](int r) {
+    r = std::clamp(r, 0, lit.height - 1);
+    return static_cast<double>(lit.at(u, r) - dark.at(u, r));
+  };
+  double information = 0;
+  for (int r = std::max(0, centre - 14); r <= std::min(lit.height - 1, centre + 14); ++r) {
+    const double mu = lit.at(u, r);
+    if (mu >= 255) continue;
+    const double derivative =
+        (light(r - 2) - 8 * light(r - 1) + 8 * light(r + 1) - light(r + 2)) / 12.0;
+    const double variance = sensor.read_noise_dn * sensor.read_noise_dn +
+                            std::max(0.0, mu) / sensor.electrons_per_dn + 1.0 / 12.0;
+    information += derivative * derivative / variance;
+  }
+  return information > 0 ? 1.0 / std::sqrt(information) : INFINITY;
+}
 
 // Wide conditions: a stripe's amplitude is what the image holds, the noise-free rendered
 // peak above the ambient (a blur that widens a stripe lowers it; the truth's peak_dn is
@@ -139,6 +171,7 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
                               ByWidth* by_width = nullptr, bool wide = false) {
   struct Sums {
     double sum = 0, sum2 = 0, interior2 = 0, light2 = 0, light_truth2 = 0, bright2 = 0;
+    double bound2 = 0, bright_bound2 = 0;
     int found = 0, wanted = 0, false_peaks = 0, unlit_false_peaks = 0;
     int bright_found = 0, bright_wanted = 0;
   };
@@ -213,8 +246,12 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
               s.interior2 += error * error;
               ++f.interior_peaks;
             }
+            const double bound =
+                wide ? RowBound(lit, dark, renderer.scene().sensor, p.u, p.v) : 0.0;
+            s.bound2 += bound * bound;
             if (bright) {
               s.bright2 += error * error;
+              s.bright_bound2 += bound * bound;
               ++f.bright_peaks;
             }
             const double centre = LightCentre(lit, dark, p.u, p.v, wide ? 10 : 5);
@@ -261,6 +298,8 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
     f.light_centre_truth_rms = std::sqrt(s.light_truth2 / std::max(1, f.accuracy_peaks));
     f.bias = s.sum / std::max(1, f.accuracy_peaks);
     f.bright_rms = std::sqrt(s.bright2 / std::max(1, f.bright_peaks));
+    f.bound_rms = std::sqrt(s.bound2 / std::max(1, f.accuracy_peaks));
+    f.bright_bound_rms = std::sqrt(s.bright_bound2 / std::max(1, f.bright_peaks));
     f.bright_recall = s.bright_wanted ? static_cast<double>(s.bright_found) / s.bright_wanted : 0;
     f.recall = s.wanted ? static_cast<double>(s.found) / s.wanted : 0.0;
     f.recall_peaks = s.wanted;
@@ -458,6 +497,8 @@ struct WideTable {
   std::map<std::string, std::vector<Figures>> figures;
   ByWidth by_width;  // all conditions but the skin with its tail (no truth for its centre)
 };
+// sqrt(sum of the squared weights) of the along-stripe quadratic fit at m = 5: its noise gain.
+constexpr double kAlongStripeGain = 0.4555;
 constexpr const char* kWideColumns[] = {"default (adaptive m=5)", "gaussian3 m=5",
                                         "plain CoM (50 DN)"};
 
@@ -478,17 +519,20 @@ const WideTable& Wide() {
     }
     std::printf(
         "\n| condition | extractor | RMS px | bias px | recall | false/frame (unlit) | "
-        "peaks | RMS against the light centre | >= 60 DN: RMS px, recall, peaks |\n"
-        "|---|---|---|---|---|---|---|---|---|\n");
+        "peaks | RMS against the light centre | >= 60 DN: RMS px, recall, peaks | "
+        "Cramér–Rao bound, one column / x 0.456 (11 columns): all, >= 60 DN |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n");
     for (const WideCondition& c : WideConditions()) {
       const auto& row = t.figures.at(c.name);
       for (size_t k = 0; k < row.size(); ++k) {
         const Figures& f = row[k];
         std::printf(
-            "| %s | %s | %.4f | %+.4f | %.2f %% | %.2f (%.2f) | %d | %.4f | %.4f, %.2f %%, %d |\n",
+            "| %s | %s | %.4f | %+.4f | %.2f %% | %.2f (%.2f) | %d | %.4f | %.4f, %.2f %%, %d | "
+            "%.4f / %.4f, %.4f / %.4f |\n",
             c.name.c_str(), kWideColumns[k], f.rms, f.bias, 100 * f.recall, f.false_per_frame,
             f.unlit_false_per_frame, f.accuracy_peaks, f.light_centre_rms, f.bright_rms,
-            100 * f.bright_recall, f.bright_peaks);
+            100 * f.bright_recall, f.bright_peaks, f.bound_rms, kAlongStripeGain * f.bound_rms,
+            f.bright_bound_rms, kAlongStripeGain * f.bright_bound_rms);
       }
     }
     std::printf(

@@ -39,7 +39,13 @@ HWY_NOINLINE void MaximaAt(D d, const CandidateSearch& s, int r, int x, V vc, V 
   const auto zero = hn::Zero(d);
   const auto thr = hn::Set(d, static_cast<uint8_t>(s.threshold));
   const auto step_dn = hn::Set(d, static_cast<uint8_t>(CandidateSearch::StepDn(s.threshold)));
-  auto row = [&](int k) { return s.data + static_cast<ptrdiff_t>(s.Clamp(k)) * s.stride + x; };
+  // Rows r - w .. r + w, clamped to the ROI only near its edges.
+  const uint8_t* centre = s.data + static_cast<ptrdiff_t>(r) * s.stride + x;
+  const bool inside = r - w >= s.y0 && r + w < s.y1;
+  auto row = [&](int k) {
+    return inside ? centre + static_cast<ptrdiff_t>(k - r) * s.stride
+                  : s.data + static_cast<ptrdiff_t>(s.Clamp(k)) * s.stride + x;
+  };
   const auto below = hn::SaturatedSub(thr, hn::SaturatedSub(vc, hn::Min(al, ar)));  // 0: passes
   const auto vup = hn::LoadU(d, row(r - 1)), vdn = hn::LoadU(d, row(r + 1));
   const auto rise = hn::SaturatedSub(vc, vup);                        // != 0 iff c > up
