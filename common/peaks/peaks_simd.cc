@@ -132,8 +132,11 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<uint8_t>* scratch,
     const uint8_t* upper = means(r - w);
     uint8_t* lower = means(r + w - 3);
     // Row r + w is read here for the first time, and stalled the pass (measured: ~14 us of
-    // a 230 us frame); fetch the row after next while this one is computed.
-    const uint8_t* ahead = row(r + w + 2);
+    // a 230 us frame); and the refinement of a wide stripe's candidate on row r reads its
+    // column out to ~3 sigma + 3 rows below it (peaks.cc, WideCentre), beyond r + w. Fetch
+    // row r + 2w while this one is computed (r + w + 2 before: wide frames 288-344 -> 266-269
+    // us per frame in alternating runs, cabinet frames within the spread).
+    const uint8_t* ahead = row(r + 2 * w);
     for (int x = s.x0; x < vec_end; x += lanes) {
       hwy::Prefetch(ahead + x);
       const auto vc = hn::LoadU(d, c + x);
