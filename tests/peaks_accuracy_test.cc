@@ -573,7 +573,9 @@ const WideTable& Wide() {
 // were peeled, peaks.cc kWideEndPeel): all of them on real laser light past the truth's ends
 // (none unlit), where clipping hides how much dimmer the column is. The RMS
 // is not: 0.035 ... 0.080 px over all clean peaks (>= 26 DN), 0.019 ... 0.039 px on those
-// >= 60 DN (docs/peak-extraction.md). These bounds are guards just above the measured
+// >= 60 DN; the floor of the table (the noise-free light centre's own offset from the trace
+// and the Cramér–Rao bound after an 11-column fit) is above 0.03 px from blur 1.5 px up and on
+// skin (docs/peak-extraction.md). These bounds are guards just above the measured
 // figures, and the default must beat gaussian3 and the plain CoM in every condition. With skin's
 // tail the truth (the plane's trace) is not the light's centre (the default is 0.43 px off it, as
 // every estimator): there the figures are against the noise-free light centre.
