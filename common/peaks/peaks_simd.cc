@@ -110,10 +110,9 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<uint8_t>* scratch,
   int ring_rows = 1;  // a power of two >= the 2w - 2 live rows of means
   while (ring_rows < 2 * w - 2) ring_rows *= 2;
   scratch->resize(static_cast<size_t>(ring_rows) * static_cast<size_t>(vec_n));
-  // Row a's means, indexed by column.
+  // Row a's means, column x at [x - x0].
   auto means = [&](int a) {
-    return scratch->data() + static_cast<ptrdiff_t>((a - s.y0 + w) & (ring_rows - 1)) * vec_n -
-           s.x0;
+    return scratch->data() + static_cast<ptrdiff_t>((a - s.y0 + w) & (ring_rows - 1)) * vec_n;
   };
   auto mean4 = [&](int a, int x) {
     return Avg(d, Avg(d, hn::LoadU(d, row(a) + x), hn::LoadU(d, row(a + 1) + x)),
@@ -121,7 +120,7 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<uint8_t>* scratch,
   };
   for (int a = s.y0 + 1 - w; a <= s.y0 + w - 3; ++a) {
     uint8_t* m = means(a);
-    for (int x = s.x0; x < vec_end; x += lanes) hn::StoreU(mean4(a, x), d, m + x);
+    for (int x = s.x0; x < vec_end; x += lanes) hn::StoreU(mean4(a, x), d, m + (x - s.x0));
   }
   for (int r = s.y0 + 1; r <= s.y1 - 2; ++r) {
     const uint8_t* c = row(r);
@@ -142,8 +141,8 @@ void FindCandidatesRows(const CandidateSearch& s, std::vector<uint8_t>* scratch,
       const auto vc = hn::LoadU(d, c + x);
       const auto ar = Avg(d, Avg(d, hn::LoadU(d, r0 + x), hn::LoadU(d, r1 + x)),
                           Avg(d, hn::LoadU(d, r2 + x), hn::LoadU(d, r3 + x)));
-      hn::StoreU(ar, d, lower + x);
-      const auto al = hn::LoadU(d, upper + x);
+      hn::StoreU(ar, d, lower + (x - s.x0));
+      const auto al = hn::LoadU(d, upper + (x - s.x0));
       const auto contrast = hn::SaturatedSub(vc, hn::Min(al, ar));
       if (!hn::AllFalse(d, hn::Eq(hn::SaturatedSub(thr, contrast), zero))) {
         MaximaAt(d, s, r, x, vc, al, ar, out);
