@@ -5,6 +5,8 @@
 #define HWY_TARGET_INCLUDE "common/peaks/peaks_simd.cc"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 
+#include <cstring>
+
 #include <hwy/cache_control.h>
 #include <hwy/highway.h>
 
@@ -76,13 +78,15 @@ HWY_NOINLINE void MaximaAt(D d, const CandidateSearch& s, int r, int x, V vc, V 
     m = hn::AndNot(hn::And(maybe, hn::Or(no_half_up, no_half_dn)), m);
     if (hn::AllFalse(d, m)) return;
   }
-  HWY_ALIGN uint8_t bits[(HWY_MAX_BYTES / 8) + 8];
+  // The mask's bits, 64 lanes to a word (zeroed past the last lane).
+  HWY_ALIGN uint8_t bits[(HWY_MAX_BYTES / 8) + 8] = {};
   const size_t nbytes = hn::StoreMaskBits(d, m, bits);
-  for (size_t b = 0; b < nbytes; ++b) {
-    unsigned byte = bits[b];
-    while (byte != 0) {
-      const int bit = __builtin_ctz(byte);
-      byte &= byte - 1;
+  for (size_t b = 0; b < nbytes; b += 8) {
+    uint64_t word;
+    std::memcpy(&word, bits + b, sizeof(word));
+    while (word != 0) {
+      const int bit = __builtin_ctzll(word);
+      word &= word - 1;
       out->push_back(
           {static_cast<uint16_t>(x + static_cast<int>(b * 8) + bit), static_cast<uint16_t>(r)});
     }
