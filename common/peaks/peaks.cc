@@ -347,9 +347,9 @@ float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float wid
   // the estimate; near it m(c) - c* ~ k (c - c*) with k = 2h phi(h) / (2 Phi(h) - 1) = 0.226
   // for a Gaussian at h = 2 sigma (each plain pass leaves ~0.23 of the offset). So each pass
   // steps by (m(c) - c) / (1 - k), which lands on the fixed point up to the profile's
-  // departure from that slope: 2 passes from the middle of the half-maximum crossings
-  // (within a few hundredths of a pixel), where plain recentring took 4.4 on average. It
-  // stops when a step is under 1e-3 px.
+  // departure from that slope: ~2 passes from the middle of the half-maximum crossings
+  // (within a few hundredths of a pixel), where plain recentring took 4.4 on average to move
+  // by less than 1e-3 px. It stops when a step is under kWideSettledPx.
   constexpr float kStep = 1.0f / (1.0f - 0.2263f);
   constexpr float kWideSettledPx = 5e-3f;
   float centre = start - static_cast<float>(lo_row);
