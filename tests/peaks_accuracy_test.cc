@@ -44,7 +44,39 @@ struct Figures {
   // Wide conditions only: over the clean peaks whose rendered stripe is >= kBrightDn.
   double bright_rms = 0, bright_recall = 0;
   int bright_peaks = 0;
+  // Wide conditions only: the Cramér–Rao bound of one column's row (RowBound), as an RMS
+  // over the same peaks, all and bright.
+  double bound_rms = 0, bright_bound_rms = 0;
 };
+
+// The Cramér–Rao bound (a standard deviation, px) of the row of the stripe crossing column u
+// near row v, from that column's samples alone: 1 / sqrt(sum over rows of (d mu / d v)^2 /
+// var), mu the noise-free image (lasers on, RenderRadiance: no speckle) clipped at 255, the
+// stripe taken to move rigidly (d mu / d v = -d(lit - dark) / d row, a 5-point derivative,
+// 0 where mu clips), var = read^2 + mu / electrons_per_dn + 1/12 (the sensor's read and
+// shot noise and the 8-bit rounding; speckle, which scales a column's stripe as a whole,
+// left out). No estimator reading the column alone does better on average; the
+// along-stripe fit over 2m + 1 columns, each with its own noise, can reach this times
+// sqrt(sum of its weights squared) (0.456 at m = 5) where the stripe is a quadratic.
+double RowBound(const virtual_cabinet::FloatImage& lit, const virtual_cabinet::FloatImage& dark,
+                const virtual_cabinet::Sensor& sensor, int u, double v) {
+  const int centre = static_cast<int>(std::lround(v));
+  auto light = [&](int r) {
+    r = std::clamp(r, 0, lit.height - 1);
+    return static_cast<double>(lit.at(u, r) - dark.at(u, r));
+  };
+  double information = 0;
+  for (int r = std::max(0, centre - 14); r <= std::min(lit.height - 1, centre + 14); ++r) {
+    const double mu = lit.at(u, r);
+    if (mu >= 255) continue;
+    const double derivative =
+        (light(r - 2) - 8 * light(r - 1) + 8 * light(r + 1) - light(r + 2)) / 12.0;
+    const double variance = sensor.read_noise_dn * sensor.read_noise_dn +
+                            std::max(0.0, mu) / sensor.electrons_per_dn + 1.0 / 12.0;
+    information += derivative * derivative / variance;
+  }
+  return information > 0 ? 1.0 / std::sqrt(information) : INFINITY;
+}
 
 // Wide conditions: a stripe's amplitude is what the image holds, the noise-free rendered
 // peak above the ambient (a blur that widens a stripe lowers it; the truth's peak_dn is
@@ -139,6 +171,7 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
                               ByWidth* by_width = nullptr, bool wide = false) {
   struct Sums {
     double sum = 0, sum2 = 0, interior2 = 0, light2 = 0, light_truth2 = 0, bright2 = 0;
+    double bound2 = 0, bright_bound2 = 0;
     int found = 0, wanted = 0, false_peaks = 0, unlit_false_peaks = 0;
     int bright_found = 0, bright_wanted = 0;
   };
@@ -213,8 +246,12 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
               s.interior2 += error * error;
               ++f.interior_peaks;
             }
+            const double bound =
+                wide ? RowBound(lit, dark, renderer.scene().sensor, p.u, p.v) : 0.0;
+            s.bound2 += bound * bound;
             if (bright) {
               s.bright2 += error * error;
+              s.bright_bound2 += bound * bound;
               ++f.bright_peaks;
             }
             const double centre = LightCentre(lit, dark, p.u, p.v, wide ? 10 : 5);
@@ -261,6 +298,8 @@ std::vector<Figures> Evaluate(const Renderer& renderer, const std::vector<PeakPa
     f.light_centre_truth_rms = std::sqrt(s.light_truth2 / std::max(1, f.accuracy_peaks));
     f.bias = s.sum / std::max(1, f.accuracy_peaks);
     f.bright_rms = std::sqrt(s.bright2 / std::max(1, f.bright_peaks));
+    f.bound_rms = std::sqrt(s.bound2 / std::max(1, f.accuracy_peaks));
+    f.bright_bound_rms = std::sqrt(s.bright_bound2 / std::max(1, f.bright_peaks));
     f.bright_recall = s.bright_wanted ? static_cast<double>(s.bright_found) / s.bright_wanted : 0;
     f.recall = s.wanted ? static_cast<double>(s.found) / s.wanted : 0.0;
     f.recall_peaks = s.wanted;
@@ -458,8 +497,17 @@ struct WideTable {
   std::map<std::string, std::vector<Figures>> figures;
   ByWidth by_width;  // all conditions but the skin with its tail (no truth for its centre)
 };
-constexpr const char* kWideColumns[] = {"default (adaptive m=5)", "gaussian3 m=5",
+// sqrt(sum of the squared weights) of the along-stripe quadratic fit at m = 5: its noise gain.
+// The table's "floor" is hypot(the noise-free light centre against the truth, this x the
+// bound): what an estimator that reads the light's centre, smoothing over 11 columns, is left
+// with (the light centre is off the plane's trace where the blur along u bends a curved
+// stripe's light, at ends and tips; the image holds nothing that puts it back).
+constexpr double kAlongStripeGain = 0.4555;
+// The default, gaussian3 in its place, the default without the along-stripe fit (its
+// per-column figure, to set against one column's Cramér–Rao bound) and the plain CoM.
+constexpr const char* kWideColumns[] = {"default (adaptive m=5)", "gaussian3 m=5", "adaptive m=0",
                                         "plain CoM (50 DN)"};
+constexpr size_t kWidePlain = 3;
 
 const WideTable& Wide() {
   static const WideTable table = [] {
@@ -467,41 +515,50 @@ const WideTable& Wide() {
     const std::vector<double> times = {2.0, 5.0, 8.0};
     PeakParams gaussian3;
     gaussian3.estimator = PeakEstimator::kGaussian3;
+    PeakParams per_column;
+    per_column.along_stripe_half_width = 0;
     for (const WideCondition& c : WideConditions()) {
       Scene scene = Scene::Load(ScenePath(c.scene));
       if (c.blur_px >= 0) scene.sensor.blur_px = c.blur_px;
       scene.sensor.laser_dn = c.laser_dn;
       if (!c.tail) scene.subject_light_spread.tail_mm = 0;
       const Renderer renderer(scene);
-      t.figures[c.name] = Evaluate(renderer, {PeakParams(), gaussian3}, times, 50,
+      t.figures[c.name] = Evaluate(renderer, {PeakParams(), gaussian3, per_column}, times, 50,
                                    c.tail ? nullptr : &t.by_width, /*wide=*/true);
     }
     std::printf(
         "\n| condition | extractor | RMS px | bias px | recall | false/frame (unlit) | "
-        "peaks | RMS against the light centre | >= 60 DN: RMS px, recall, peaks |\n"
-        "|---|---|---|---|---|---|---|---|---|\n");
+        "peaks | RMS against the light centre (light centre against the truth) | >= 60 DN: RMS "
+        "px, recall, peaks | Cramér–Rao bound, one column / x 0.456 (11 columns): all, >= 60 "
+        "DN | floor px |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (const WideCondition& c : WideConditions()) {
       const auto& row = t.figures.at(c.name);
       for (size_t k = 0; k < row.size(); ++k) {
         const Figures& f = row[k];
         std::printf(
-            "| %s | %s | %.4f | %+.4f | %.2f %% | %.2f (%.2f) | %d | %.4f | %.4f, %.2f %%, %d |\n",
+            "| %s | %s | %.4f | %+.4f | %.2f %% | %.2f (%.2f) | %d | %.4f (%.4f) | %.4f, %.2f %%, "
+            "%d | %.4f / %.4f, %.4f / %.4f | %.4f |\n",
             c.name.c_str(), kWideColumns[k], f.rms, f.bias, 100 * f.recall, f.false_per_frame,
-            f.unlit_false_per_frame, f.accuracy_peaks, f.light_centre_rms, f.bright_rms,
-            100 * f.bright_recall, f.bright_peaks);
+            f.unlit_false_per_frame, f.accuracy_peaks, f.light_centre_rms, f.light_centre_truth_rms,
+            f.bright_rms, 100 * f.bright_recall, f.bright_peaks, f.bound_rms,
+            kAlongStripeGain * f.bound_rms, f.bright_bound_rms,
+            kAlongStripeGain * f.bright_bound_rms,
+            std::hypot(f.light_centre_truth_rms, kAlongStripeGain * f.bound_rms));
       }
     }
     std::printf(
-        "\n| width (px) | peaks | default RMS px | gaussian3 RMS px | plain CoM RMS px (peaks) |\n"
-        "|---|---|---|---|---|\n");
+        "\n| width (px) | peaks | default RMS px | gaussian3 RMS px | adaptive m=0 RMS px | plain "
+        "CoM RMS px (peaks) |\n"
+        "|---|---|---|---|---|---|\n");
     for (const auto& [bin, by_extractor] : t.by_width.bins) {
       auto rms = [&](size_t k) {
         const auto it = by_extractor.find(k);
         return it == by_extractor.end() ? NAN : std::sqrt(it->second.second / it->second.first);
       };
-      const auto plain = by_extractor.find(2);
-      std::printf("| %s | %d | %.4f | %.4f | %.4f (%d) |\n", ByWidth::kBins[bin],
-                  by_extractor.at(0).first, rms(0), rms(1), rms(2),
+      const auto plain = by_extractor.find(kWidePlain);
+      std::printf("| %s | %d | %.4f | %.4f | %.4f | %.4f (%d) |\n", ByWidth::kBins[bin],
+                  by_extractor.at(0).first, rms(0), rms(1), rms(2), rms(kWidePlain),
                   plain == by_extractor.end() ? 0 : plain->second.first);
     }
     return t;
@@ -516,7 +573,9 @@ const WideTable& Wide() {
 // were peeled, peaks.cc kWideEndPeel): all of them on real laser light past the truth's ends
 // (none unlit), where clipping hides how much dimmer the column is. The RMS
 // is not: 0.035 ... 0.080 px over all clean peaks (>= 26 DN), 0.019 ... 0.039 px on those
-// >= 60 DN (docs/peak-extraction.md). These bounds are guards just above the measured
+// >= 60 DN; the floor of the table (the noise-free light centre's own offset from the trace
+// and the Cramér–Rao bound after an 11-column fit) is above 0.03 px from blur 1.5 px up and on
+// skin (docs/peak-extraction.md). These bounds are guards just above the measured
 // figures, and the default must beat gaussian3 and the plain CoM in every condition. With skin's
 // tail the truth (the plane's trace) is not the light's centre (the default is 0.43 px off it, as
 // every estimator): there the figures are against the noise-free light centre.
@@ -550,7 +609,7 @@ TEST(PeaksAccuracyTest, WideStripesOnRenderedFrames) {
 TEST(PeaksAccuracyTest, NoWidthWherePlainCentreOfMassIsBetter) {
   for (const auto& [bin, by_extractor] : Wide().by_width.bins) {
     SCOPED_TRACE(ByWidth::kBins[bin]);
-    const auto plain = by_extractor.find(2);
+    const auto plain = by_extractor.find(kWidePlain);
     if (plain == by_extractor.end() || plain->second.first < 100) continue;
     const auto& mine = by_extractor.at(0);
     EXPECT_LT(std::sqrt(mine.second / mine.first),

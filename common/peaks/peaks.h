@@ -129,13 +129,18 @@ class PeakExtractor {
     uint16_t u;
     uint16_t v;
   };
+  // The SIMD candidate pass's buffers, reused across frames.
+  struct SimdScratch {
+    std::vector<uint8_t> means;  // A ring of rows' flank means.
+  };
 
  private:
   void Run(const ImageView& image, const PeakParams& params, bool simd, std::vector<Peak>* out);
   static void RefineRow(void* ctx);
 
   std::vector<Candidate> candidates_;  // Of one row (SIMD) or one column (scalar).
-  std::vector<Peak> peaks_;            // Refined, before the per-column pass.
+  SimdScratch simd_scratch_;
+  std::vector<Peak> peaks_;  // Refined, before the per-column pass.
   std::vector<uint32_t> column_start_;
   std::vector<float> rows_;     // Unsmoothed rows, while smoothing along the stripe.
   std::vector<int32_t> links_;  // Each peak's neighbours along its stripe.

@@ -14,6 +14,7 @@ namespace mirrorscan {
 namespace peaks_internal {
 
 using Candidate = PeakExtractor::Candidate;
+using SimdScratch = PeakExtractor::SimdScratch;
 
 // The candidate rule of peaks.h, on the ROI [x0, x1) x [y0, y1).
 struct CandidateSearch {
@@ -58,10 +59,10 @@ struct CandidateSearch {
 };
 
 // Appends each row's candidates to `row` (ascending u), then calls on_row(ctx), which
-// consumes and clears them; rows in increasing order.
+// consumes and clears them; rows in increasing order. `scratch` is reused across frames.
 using RowCallback = void (*)(void* ctx);
-void FindCandidatesSimd(const CandidateSearch& s, std::vector<Candidate>* row, RowCallback on_row,
-                        void* ctx);
+void FindCandidatesSimd(const CandidateSearch& s, SimdScratch* scratch, std::vector<Candidate>* row,
+                        RowCallback on_row, void* ctx);
 std::string SimdTargetName();
 
 }  // namespace peaks_internal
