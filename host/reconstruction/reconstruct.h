@@ -148,7 +148,7 @@ struct ReconstructOptions {
   // Points whose confidence is below this are dropped: the last column of a stripe with a
   // weak peak, a ray meeting the plane at a grazing angle, where the measured error grows
   // (docs/reconstruction.md: 0.15 leaves no mannequin point beyond 5 mm of its surface but
-  // drops 3 % of its points and 7 % of the cuboid's). 0, the default, keeps every point.
+  // drops 4 % of its points and 7 % of the cuboid's). 0, the default, keeps every point.
   double min_confidence = 0.0;
   // Optional ICP refinement of mirror views and the lower camera against the rest
   // (reported; off by default).
