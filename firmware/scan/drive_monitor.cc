@@ -80,6 +80,11 @@ std::string DriveMonitor::last_error() const {
   return last_error_;
 }
 
+void DriveMonitor::SetTarget(std::optional<double> target_mm) {
+  std::lock_guard lock(mutex_);
+  target_mm_ = target_mm;
+}
+
 double DriveMonitor::PositionAt(int64_t time_ns) const {
   std::lock_guard lock(mutex_);
   if (history_.empty()) return std::numeric_limits<double>::quiet_NaN();
@@ -106,7 +111,13 @@ double DriveMonitor::PositionAt(int64_t time_ns) const {
     if (stt <= 0.0) return newest.position_mm;
     const int64_t ahead =
         std::min<int64_t>(time_ns - newest.time_ns, kMaxExtrapolationPeriods * period_.count());
-    return newest.position_mm + stx / stt * static_cast<double>(ahead);
+    const double velocity = stx / stt;
+    const double position = newest.position_mm + velocity * static_cast<double>(ahead);
+    if (!target_mm_) return position;
+    // Never carried past the target (nor further from it, once beyond it).
+    const double towards = *target_mm_ - newest.position_mm;
+    if (towards * velocity <= 0.0) return newest.position_mm;
+    return velocity > 0.0 ? std::min(position, *target_mm_) : std::max(position, *target_mm_);
   }
   // Newest samples are the likely ones: search from the back.
   for (size_t i = history_.size() - 1; i > 0; --i) {

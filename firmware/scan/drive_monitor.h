@@ -44,6 +44,10 @@ class DriveMonitor {
   // one, extrapolated at the last few samples' velocity (at most 3 periods ahead); the
   // oldest before the history. NaN without samples.
   double PositionAt(int64_t time_ns) const;
+  // Where the drive was sent: extrapolation stops there (the drive stops at its target, and
+  // the next poll may come late: under qemu a frame past the sweep's end was put 1.3 mm
+  // beyond it). nullopt: no bound.
+  void SetTarget(std::optional<double> target_mm);
 
  private:
   void Run();
@@ -55,6 +59,7 @@ class DriveMonitor {
   std::deque<DriveSample> history_;  // oldest first, a few seconds
   int64_t last_good_ns_ = 0;
   std::string last_error_;
+  std::optional<double> target_mm_;
   bool stop_ = false;
   std::thread thread_;
 };

@@ -81,5 +81,30 @@ TEST(DriveMonitor, ExtrapolationStopsAFewPeriodsAfterTheNewestSample) {
   EXPECT_GE(far, newest.position_mm);
 }
 
+// The drive was sent to a target it is about to reach: a frame exposed after the newest
+// sample is put at most at the target, never past it (the drive stops there).
+TEST(DriveMonitor, ExtrapolationStopsAtTheTarget) {
+  ClockDrive drive(milliseconds(1));
+  // Slow polls, so the checks below fall between two samples.
+  auto monitor = std::make_unique<DriveMonitor>(drive, milliseconds(200));
+  std::this_thread::sleep_for(milliseconds(900));
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    const DriveSample newest = *monitor->Latest();
+    const int64_t later = newest.time_ns + 100'000'000;  // 15 mm of travel at 150 mm/s
+    monitor->SetTarget(std::nullopt);
+    const double unbounded = monitor->PositionAt(later);
+    monitor->SetTarget(newest.position_mm + 5.0);
+    const double bounded = monitor->PositionAt(later);
+    monitor->SetTarget(newest.position_mm - 5.0);  // already past it
+    const double beyond = monitor->PositionAt(later);
+    if (monitor->Latest()->time_ns != newest.time_ns) continue;  // a poll came in between
+    EXPECT_GT(unbounded, newest.position_mm + 10.0);
+    EXPECT_NEAR(bounded, newest.position_mm + 5.0, 1e-9);
+    EXPECT_NEAR(beyond, newest.position_mm, 1e-9);
+    return;
+  }
+  FAIL() << "a poll came in between the checks five times";
+}
+
 }  // namespace
 }  // namespace mirrorscan::scan

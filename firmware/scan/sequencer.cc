@@ -350,6 +350,7 @@ void Sequencer::BeginScan(const std::string& origin,
     if (devices_.drive->Status().fault) devices_.drive->ResetFault();
     devices_.drive->Enable(true);
     devices_.drive->StartHome();
+    monitor_->SetTarget(std::nullopt);
   } catch (const std::exception& e) {
     Fail(std::string("drive: ") + e.what());
     return;
@@ -466,6 +467,7 @@ void Sequencer::StepArming() {
   lasers_on_since_ns_ = hal::SteadyNowNs();
   devices_.drive->SetSpeed(options_.speed_mm_s);
   devices_.drive->Start(options_.sweep_end_mm);
+  monitor_->SetTarget(options_.sweep_end_mm);
   command_ns_ = hal::SteadyNowNs();
   last_progress_ns_ = 0;
   try {
