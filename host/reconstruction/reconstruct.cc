@@ -1135,9 +1135,7 @@ class SeenAlongRays {
 
   SeenAlongRays(const ScanArchive& archive, const PeakTable& table,
                 const std::vector<Hypothesis>& hyp, size_t cameras) {
-    int width = 1;
-    for (const PeakState& p : table.peaks) width = std::max(width, p.u + 1);
-    width_ = width;
+    width_ = table.columns;
     first_.assign(cameras * width_ + 1, 0);
     auto slot = [&](const PeakState& p) { return archive.frames[p.frame].camera * width_ + p.u; };
     for (const PeakState& p : table.peaks)
