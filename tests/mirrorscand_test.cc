@@ -233,13 +233,16 @@ TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {
       }
       EXPECT_GE(f.slide_position_mm, 199.0);
       EXPECT_LE(f.slide_position_mm, 501.0);
-      // Lit frames show the laser ring (on the mannequin and the panels). Only the first
-      // may have begun its exposure before the lasers went on (then recorded as off).
+      // Lit frames show the laser ring (on the mannequin and the panels). Only frames
+      // whose exposure began before the lasers went on are recorded as off: the first
+      // one, or a few more when a loaded machine renders them late; never one after a
+      // lit frame.
       if (f.lasers_on) {
         EXPECT_FALSE(f.peaks.empty()) << "camera " << camera << " sequence " << f.sequence;
         if (i % 4 == 1) match += test_support::MatchFrameToScene(renderer, f, 200.0, 2.0);
       } else {
-        EXPECT_EQ(i, 0u) << "camera " << camera << " sequence " << f.sequence;
+        EXPECT_TRUE(i == 0 || !frames[i - 1]->lasers_on)
+            << "camera " << camera << " sequence " << f.sequence << ": unlit after a lit frame";
       }
     }
   }
