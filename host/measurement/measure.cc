@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <numbers>
 #include <sstream>
 #include <stdexcept>
@@ -23,6 +24,10 @@ constexpr double kUpperArmFraction = 0.275;   // of shoulder-to-wrist: mid upper
 constexpr double kJunctionMarginMm = 10.0;    // torso girths stay this far below the arms' junction
 constexpr double kMinPartAreaMm2 = 200.0;     // smaller pieces are specks, not limbs
 constexpr double kFullConfidenceGapMm = 20.0;  // a neighbour nearer than this lowers confidence
+// A hole across a section is bridged (section.h) where no gap is longer than this and the
+// bridges are at most this share of the outline; beyond, the section counts as holed.
+constexpr double kMaxBridgeMm = 40.0;
+constexpr double kMaxBridgedShare = 0.1;
 
 std::string Mm(double x) {
   std::ostringstream out;
@@ -36,7 +41,7 @@ const char* SideName(int side) { return side == 0 ? "left" : "right"; }
 struct TorsoSample {
   bool found = false;
   bool hole = false;
-  double girth = 0.0, contour = 0.0, depth = 0.0, gap = 0.0;
+  double girth = 0.0, contour = 0.0, depth = 0.0, gap = 0.0, seen = 1.0;
   std::vector<Eigen::Vector3d> hull;
 };
 
@@ -55,6 +60,16 @@ class Analysis {
     for (const Eigen::Vector3d& v : slicer.mesh().vertices) {
       top_ = std::max(top_, v.z());
       bottom_ = std::min(bottom_, v.z());
+    }
+    // The mesh's borders: edges of one triangle only.
+    std::map<std::pair<int, int>, int> edges;
+    for (const Eigen::Vector3i& t : slicer.mesh().triangles) {
+      for (int k = 0; k < 3; ++k) {
+        ++edges[std::minmax(t[k], t[(k + 1) % 3])];
+      }
+    }
+    for (const auto& [edge, count] : edges) {
+      if (count == 1) border_.push_back(slicer.mesh().vertices[edge.first]);
     }
   }
 
@@ -153,6 +168,27 @@ class Analysis {
 
   static double GapConfidence(double gap) { return std::min(1.0, gap / kFullConfidenceGapMm); }
 
+  // A part the data do not close: a hole across it that no allowed bridge spans.
+  static bool Holed(const SectionPart& p) {
+    return p.has_hole && !(p.bridged && p.largest_bridge_mm <= kMaxBridgeMm &&
+                           p.bridged_mm <= kMaxBridgedShare * p.contour_mm);
+  }
+  // Why a holed part is not bridged.
+  static std::string HoleReason(const SectionPart& p) {
+    if (!p.bridged) return "a hole crosses the section (its sides do not join smoothly)";
+    if (p.largest_bridge_mm > kMaxBridgeMm) {
+      return "a hole " + Mm(p.largest_bridge_mm) + " across crosses the section (at most " +
+             Mm(kMaxBridgeMm) + " is bridged)";
+    }
+    return "holes cross " + Mm(p.bridged_mm) + " of the section's " + Mm(p.contour_mm) +
+           " (at most " + std::to_string(static_cast<int>(100 * kMaxBridgedShare)) +
+           " % is bridged)";
+  }
+  // The share of a part's outline that was seen.
+  static double SeenShare(const SectionPart& p) {
+    return p.bridged && p.contour_mm > 0.0 ? 1.0 - p.bridged_mm / p.contour_mm : 1.0;
+  }
+
   TorsoSample Torso(double z) const {
     const Section s = slicer_.AtHeight(z);
     TorsoSample sample;
@@ -160,7 +196,8 @@ class Analysis {
     if (body < 0) return sample;
     const SectionPart& p = s.parts[body];
     sample.found = true;
-    sample.hole = p.has_hole;
+    sample.hole = Holed(p);
+    sample.seen = SeenShare(p);
     sample.girth = p.tape_mm;
     sample.contour = p.contour_mm;
     const Eigen::Vector2d front(lateral_.y(), -lateral_.x());
@@ -198,7 +235,7 @@ class Analysis {
       return false;
     }
     std::array<Eigen::Vector2d, 2> legs = {parts[0]->centroid, parts[1]->centroid};
-    if (parts[0]->has_hole || parts[1]->has_hole) {
+    if (Holed(*parts[0]) || Holed(*parts[1])) {
       crotch_.withheld = "a hole crosses the legs at " + Mm(z_leg);
     }
     // Up from there until one part holds both legs: the crotch.
@@ -206,7 +243,7 @@ class Analysis {
       const Section section = slicer_.AtHeight(z);
       const int a = PartAt(section, tracked[0], 100.0), b = PartAt(section, tracked[1], 100.0);
       if (a < 0 || b < 0) return true;
-      if (hole) *hole = section.parts[a].has_hole || section.parts[b].has_hole;
+      if (hole) *hole = Holed(section.parts[a]) || Holed(section.parts[b]);
       if (a == b) return true;
       tracked = {section.parts[a].centroid, section.parts[b].centroid};
       return false;
@@ -237,6 +274,15 @@ class Analysis {
       }
     }
     crotch_z_ = 0.5 * (lo + hi);
+    // Where the legs first meet, the scan must have seen them meet: joined only by a
+    // bridge across a hole (the crotch is rarely seen), the height is the bridge's guess.
+    {
+      const Section above = slicer_.AtHeight(hi);
+      const int joined = PartAt(above, legs[0], 100.0);
+      if (joined >= 0 && above.parts[joined].has_hole && !crotch_.withheld) {
+        crotch_.withheld = "the legs meet inside a hole at " + Mm(hi) + ": the crotch is not seen";
+      }
+    }
     if (crotch_z_ < 0.3 * top_ || crotch_z_ > 0.6 * top_) {
       not_human_ = "its lower parts join at " + Mm(crotch_z_) + ", not at a crotch's height";
       return false;
@@ -385,7 +431,7 @@ class Analysis {
     }
     const Section s = slicer_.AtHeight(head_top - 2.0);
     const int head = BodyPart(s);
-    if (head < 0 || s.parts[head].has_hole) {
+    if (head < 0 || Holed(s.parts[head])) {
       m.withheld = "a hole at the top of the head";
     } else {
       m.value_mm = head_top;
@@ -478,7 +524,7 @@ class Analysis {
     m.z_mm = *e.z;
     m.value_mm = t.girth;
     m.contour_mm = t.contour;
-    m.confidence = GapConfidence(t.gap) * e.edge_factor;
+    m.confidence = GapConfidence(t.gap) * e.edge_factor * t.seen;
     out_.contours.push_back({name, t.hull});
     return m;
   }
@@ -531,13 +577,13 @@ class Analysis {
         m.withheld = "below the crotch, which is withheld";
       } else if (legs[side] < 0) {
         m.withheld = "no leg at " + Mm(z);
-      } else if (s.parts[legs[side]].has_hole) {
+      } else if (Holed(s.parts[legs[side]])) {
         m.withheld = "a hole crosses the thigh at " + Mm(z);
       } else {
         const SectionPart& p = s.parts[legs[side]];
         m.value_mm = p.tape_mm;
         m.contour_mm = p.contour_mm;
-        m.confidence = GapConfidence(Gap(s, legs[side]));
+        m.confidence = GapConfidence(Gap(s, legs[side])) * SeenShare(p);
         out_.contours.push_back({m.name, Hull3(s, p)});
       }
       Add(m);
@@ -560,6 +606,17 @@ class Analysis {
       }
     }
     Add(TorsoGirth("neck_girth", neck));
+  }
+
+  // Whether a border vertex of the mesh lies within `r` of the segment from a to b.
+  bool NearBorder(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) const {
+    const Eigen::Vector3d ab = b - a;
+    const double length2 = ab.squaredNorm();
+    for (const Eigen::Vector3d& v : border_) {
+      const double t = length2 > 0.0 ? std::clamp((v - a).dot(ab) / length2, 0.0, 1.0) : 0.0;
+      if ((a + t * ab - v).norm() <= r) return true;
+    }
+    return false;
   }
 
   // The first point past `inside` along `direction` where the line leaves the body.
@@ -640,7 +697,7 @@ class Analysis {
         const Eigen::Vector3d at = mean + (t_top + (t_low - t_top) * k / 10.0) * down;
         const Section s = slicer_.ByPlane(at, down);
         const int part = PartAt(s, Eigen::Vector2d::Zero(), arm.radius);
-        if (part >= 0 && !s.parts[part].has_hole)
+        if (part >= 0 && !Holed(s.parts[part]))
           centres.push_back(s.ToWorld(s.parts[part].centroid));
       }
       if (centres.size() < 5) break;
@@ -656,7 +713,25 @@ class Analysis {
       if ((v - mean - t * down).norm() <= 1.5 * arm.radius) t_wrist = std::max(t_wrist, t);
     }
     const Eigen::Vector3d wrist = mean + t_wrist * down;
-    const std::optional<Eigen::Vector3d> exit = ExitAlong(mean + t_junction * down, -down);
+    // A line through a hole crosses no surface there: where a border lies round the arm's
+    // far end, or along the axis's way out of the shoulder, the landmark is not seen (a
+    // scan's arm ends and shoulder tops) and a crossing further on would be taken for it.
+    if (NearBorder(wrist, wrist, 1.5 * arm.radius)) {
+      why =
+          "a hole at the end of the " + std::string(SideName(side)) + " arm: the wrist is not seen";
+      return;
+    }
+    const Eigen::Vector3d junction_point = mean + t_junction * down;
+    const std::optional<Eigen::Vector3d> exit = ExitAlong(junction_point, -down);
+    // Up to the exit, or (none found) up to the top of the mesh.
+    const Eigen::Vector3d way_out =
+        exit ? *exit
+             : Eigen::Vector3d(junction_point + (top_ - junction_point.z()) / down.z() * down);
+    if (NearBorder(junction_point, way_out, 2.0 * arm.radius)) {
+      why = "a hole where the " + std::string(SideName(side)) +
+            " arm's axis leaves the body: the shoulder point is not seen";
+      return;
+    }
     if (!exit) {
       why = "the " + std::string(SideName(side)) +
             " arm's axis never leaves the body above the shoulder";
@@ -673,7 +748,7 @@ class Analysis {
     const int part = PartAt(s, Eigen::Vector2d::Zero(), arm.radius);
     if (part < 0) {
       girth.withheld = "no arm section at the upper-arm point";
-    } else if (s.parts[part].has_hole) {
+    } else if (Holed(s.parts[part])) {
       girth.withheld = "a hole crosses the upper arm";
     } else {
       double reach = 0.0;
@@ -683,7 +758,7 @@ class Analysis {
       } else {
         girth.value_mm = s.parts[part].tape_mm;
         girth.contour_mm = s.parts[part].contour_mm;
-        girth.confidence = GapConfidence(Gap(s, part));
+        girth.confidence = GapConfidence(Gap(s, part)) * SeenShare(s.parts[part]);
         out_.contours.push_back({girth.name, Hull3(s, s.parts[part])});
       }
     }
@@ -698,8 +773,8 @@ class Analysis {
       g.part = part;
       if (index < 0) {
         g.withheld = "no " + part + " section at this height";
-      } else if (s.parts[index].has_hole) {
-        g.withheld = "a hole crosses the section";
+      } else if (Holed(s.parts[index])) {
+        g.withheld = HoleReason(s.parts[index]);
       } else {
         g.girth_mm = s.parts[index].tape_mm;
         g.contour_mm = s.parts[index].contour_mm;
@@ -724,6 +799,7 @@ class Analysis {
 
   const Slicer& slicer_;
   BodyMeasurements& out_;
+  std::vector<Eigen::Vector3d> border_;  // vertices on the mesh's borders (holes)
   double top_ = std::numeric_limits<double>::lowest();
   double bottom_ = std::numeric_limits<double>::max();
   std::string not_human_;

@@ -174,9 +174,9 @@ TEST(MannequinMeasureTest, ArmsAgainstTheTorsoWithholdItsGirths) {
   ExpectMeasured(body, "hip_girth", Truth(truth, "hip_girth_mm"), 3.0);
 }
 
-// A mesh with a region cut out: the measurements whose sections cross it are withheld.
-TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
-  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+// The mannequin with the front of its waist cut out (a ball of `waist_hole_mm` round)
+// and the top of its head (25 mm).
+SurfaceMesh MannequinWithHoles(const vc::Subject& subject, double waist_hole_mm) {
   const nlohmann::json& truth = subject.metadata.at("truth");
   const double waist_z = truth.at("waist_z_mm").get<double>();
   const double b = subject.metadata.at("waist").at("semi_axes_mm")[1].get<double>();
@@ -187,9 +187,17 @@ TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
   for (const Eigen::Vector3i& t : subject.mesh.triangles) {
     const Eigen::Vector3d c =
         (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3.0;
-    if ((c - front_of_waist).norm() < 30.0 || (c - top_of_head).norm() < 25.0) continue;
+    if ((c - front_of_waist).norm() < waist_hole_mm || (c - top_of_head).norm() < 25.0) continue;
     mesh.triangles.push_back(t);
   }
+  return mesh;
+}
+
+// A hole too wide to bridge withholds the measurements whose sections cross it.
+TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
+  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+  const nlohmann::json& truth = subject.metadata.at("truth");
+  const SurfaceMesh mesh = MannequinWithHoles(subject, 30.0);  // ~60 mm across the waist
   ASSERT_LT(mesh.triangles.size(), subject.mesh.triangles.size());
   const BodyMeasurements body = MeasureBody(mesh);
   for (const char* name : {"waist_girth", "stature"}) {
@@ -203,6 +211,65 @@ TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
   // Far from the holes, the numbers stand.
   ExpectMeasured(body, "hip_girth", truth.at("hip_girth_mm").get<double>(), 3.0);
   ExpectMeasured(body, "crotch_height", truth.at("crotch_height_mm").get<double>(), 2.0);
+}
+
+// A small hole is bridged along the section's own curve: the waist across a hole of up to
+// 36 mm comes out as the whole surface's, with a confidence that says part of it was not
+// seen.
+TEST(MannequinMeasureTest, ASmallHoleIsBridged) {
+  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+  const BodyMeasurements whole = MeasureBody(ToSurface(subject.mesh));
+  const BodyMeasurements holed = MeasureBody(MannequinWithHoles(subject, 18.0));
+  const Measurement* w = whole.Find("waist_girth");
+  const Measurement* h = holed.Find("waist_girth");
+  ASSERT_TRUE(w && w->value_mm && h);
+  ASSERT_TRUE(h->value_mm) << h->withheld.value_or("");
+  EXPECT_NEAR(*h->value_mm, *w->value_mm, 0.1);
+  EXPECT_LT(h->confidence, 0.99);
+  EXPECT_GT(h->confidence, 0.9);
+}
+
+// The mesh without the triangles whose centre lies within `radius` of `centre`.
+SurfaceMesh CutOut(const SurfaceMesh& mesh, const Eigen::Vector3d& centre, double radius) {
+  SurfaceMesh cut;
+  cut.vertices = mesh.vertices;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Eigen::Vector3d c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
+    if ((c - centre).norm() >= radius) cut.triangles.push_back(t);
+  }
+  return cut;
+}
+
+// A line through a hole crosses nothing there: with the arm's end or the shoulder cut
+// open (as a scan leaves them), a crossing further on would be taken for the landmark.
+TEST(MannequinMeasureTest, HolesAtAnArmsEndsWithholdItsLandmarks) {
+  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+  const nlohmann::json& truth = subject.metadata.at("truth");
+  const SurfaceMesh whole = ToSurface(subject.mesh);
+  const BodyMeasurements exact = MeasureBody(whole);
+  const Eigen::Vector3d* wrist = nullptr;
+  const Eigen::Vector3d* shoulder = nullptr;
+  for (const Landmark& l : exact.landmarks) {
+    if (l.name == "wrist_left") wrist = &l.point_mm;
+    if (l.name == "shoulder_left") shoulder = &l.point_mm;
+  }
+  ASSERT_TRUE(wrist && shoulder);
+  struct Case {
+    Eigen::Vector3d centre;
+    const char* reason;
+  };
+  for (const Case& c :
+       {Case{*wrist, "the wrist is not seen"}, Case{*shoulder, "the shoulder point is not seen"}}) {
+    const BodyMeasurements body = MeasureBody(CutOut(whole, c.centre, 30.0));
+    for (const char* name : {"arm_length_left", "upper_arm_girth_left", "shoulder_breadth"}) {
+      const Measurement* m = body.Find(name);
+      ASSERT_NE(m, nullptr);
+      EXPECT_FALSE(m->value_mm) << name << " " << c.reason;
+      ASSERT_TRUE(m->withheld) << name;
+      EXPECT_NE(m->withheld->find(c.reason), std::string::npos) << name << ": " << *m->withheld;
+    }
+    ExpectMeasured(body, "arm_length_right", Truth(truth, "arm_length_mm"), 2.0);
+  }
 }
 
 void ExpectAllWithheld(const vc::Subject& subject) {

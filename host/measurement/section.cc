@@ -59,13 +59,13 @@ struct Box2 {
   }
 };
 
-// Two closed loops belong to one part when one has a point inside the other.
+// Two loops belong to one part when one has a point inside the other (a closed one).
 bool LoopsTouch(const SectionLoop& a, const SectionLoop& b) {
   for (const Eigen::Vector2d& p : a.points) {
-    if (InsidePolygon(b.points, p)) return true;
+    if (b.closed && InsidePolygon(b.points, p)) return true;
   }
   for (const Eigen::Vector2d& p : b.points) {
-    if (InsidePolygon(a.points, p)) return true;
+    if (a.closed && InsidePolygon(a.points, p)) return true;
   }
   return false;
 }
@@ -93,13 +93,150 @@ double ContourLength(const std::vector<SectionLoop>& loops, const std::vector<in
   return length;
 }
 
-SectionPart MakePart(const std::vector<SectionLoop>& loops, std::vector<int> members) {
+double ChainLength(const std::vector<Eigen::Vector2d>& points) {
+  double length = 0.0;
+  for (size_t k = 1; k < points.size(); ++k) length += (points[k] - points[k - 1]).norm();
+  return length;
+}
+
+// The direction in which an open chain leaves its front (or back) end: the directions
+// of its last two stretches of kEndStretchMm, the turn between them carried on to the end
+// (exact on a circle; the chord of the last stretch alone would point outward of the
+// curve by half that stretch's turn, and a ragged border's last segment alone is noise).
+constexpr double kEndStretchMm = 8.0;
+Eigen::Vector2d EndDirection(const std::vector<Eigen::Vector2d>& points, bool back,
+                             double* turn_out) {
+  const int n = static_cast<int>(points.size());
+  auto at = [&](int k) -> const Eigen::Vector2d& { return back ? points[n - 1 - k] : points[k]; };
+  // The first index at least `length` along the chain from the end (or the last one).
+  auto along = [&](double length) {
+    int k = 0;
+    for (double walked = 0.0; k + 1 < n && walked < length; ++k)
+      walked += (at(k + 1) - at(k)).norm();
+    return k;
+  };
+  const int k1 = along(kEndStretchMm), k2 = along(2.0 * kEndStretchMm);
+  const Eigen::Vector2d near = at(0) - at(k1), far = at(k1) - at(k2);
+  *turn_out = 0.0;
+  if (near.norm() < 1e-9) return Eigen::Vector2d::Zero();
+  if (far.norm() < 1e-9 || k2 == k1) return near.normalized();
+  const double turn = std::atan2(far.x() * near.y() - far.y() * near.x(), far.dot(near));
+  *turn_out = turn;
+  return Eigen::Rotation2Dd(0.5 * turn) * near.normalized();
+}
+
+// An end of an open chain: where it stops, the direction in which it leaves, and how it
+// turns on the way there (radians per kEndStretchMm, counter-clockwise positive).
+struct ChainEnd {
+  int loop;
+  Eigen::Vector2d point, out;
+  double turn = 0.0;
+};
+
+// Ends of open chains joined across the holes between them: each end to at most one
+// other (a chain's two ends may meet each other), chosen so that the outline continues
+// smoothly: both ends must point towards each other, the bridge must bend the way both
+// chains bend (two limbs' open sides facing each other point towards each other too, but
+// joining them would bend against both), and pairs are taken cheapest first, by the gap
+// times how far each end turns away from it. Returns each end's partner or -1.
+constexpr double kMaxJoinMm = 400.0;    // measurement decides what it accepts
+constexpr double kMinTowardsCos = 0.2;  // an end turned further from the gap does not continue
+constexpr double kMinTurn = 0.05;       // a chain bending less than this is taken as straight
+std::vector<int> JoinEnds(const std::vector<ChainEnd>& ends) {
+  std::vector<std::pair<double, std::pair<int, int>>> pairs;
+  for (int a = 0; a < static_cast<int>(ends.size()); ++a) {
+    for (int b = a + 1; b < static_cast<int>(ends.size()); ++b) {
+      const Eigen::Vector2d d = ends[b].point - ends[a].point;
+      const double gap = d.norm();
+      if (gap > kMaxJoinMm) continue;
+      double cost = gap;
+      if (gap >= 1.0) {
+        const double cos_a = ends[a].out.dot(d) / gap, cos_b = -ends[b].out.dot(d) / gap;
+        if (cos_a < kMinTowardsCos || cos_b < kMinTowardsCos) continue;
+        // Leaving a, entering b (b's chain then runs against its own leaving direction).
+        const Eigen::Vector2d in_b = -ends[b].out;
+        const double bend = ends[a].out.x() * in_b.y() - ends[a].out.y() * in_b.x();
+        if ((std::abs(ends[a].turn) > kMinTurn && bend * ends[a].turn < 0.0) ||
+            (std::abs(ends[b].turn) > kMinTurn && bend * -ends[b].turn < 0.0)) {
+          continue;
+        }
+        cost *= 3.0 - cos_a - cos_b;
+      }
+      pairs.push_back({cost, {a, b}});
+    }
+  }
+  std::sort(pairs.begin(), pairs.end());
+  std::vector<int> partner(ends.size(), -1);
+  for (const auto& [cost, ab] : pairs) {
+    if (partner[ab.first] < 0 && partner[ab.second] < 0) {
+      partner[ab.first] = ab.second;
+      partner[ab.second] = ab.first;
+    }
+  }
+  return partner;
+}
+
+// A bridge from end a to end b: a cubic Hermite curve that leaves a and enters b along
+// the chains' own directions, so an arc of a smooth outline is followed closely (a quarter
+// circle to 0.03 % of its radius) where a straight chord would cut the corner. Appends its
+// inner points; returns its length.
+double Bridge(const ChainEnd& a, const ChainEnd& b, std::vector<Eigen::Vector2d>* points) {
+  const double gap = (b.point - a.point).norm();
+  if (gap < 1.0) return gap;  // a chord is as good
+  // Tangents of gap / cos²(θ/4), θ the turn from leaving a to entering b: the cubic that
+  // best follows a circular arc of that turn.
+  const double turn = std::acos(std::clamp(a.out.dot(-b.out), -1.0, 1.0));
+  const double c = std::cos(turn / 4.0);
+  const Eigen::Vector2d m0 = gap / (c * c) * a.out, m1 = -gap / (c * c) * b.out;
+  constexpr int kSamples = 16;
+  Eigen::Vector2d previous = a.point;
+  double length = 0.0;
+  for (int k = 1; k < kSamples; ++k) {
+    const double t = static_cast<double>(k) / kSamples, t2 = t * t, t3 = t2 * t;
+    const Eigen::Vector2d p = (2 * t3 - 3 * t2 + 1) * a.point + (t3 - 2 * t2 + t) * m0 +
+                              (-2 * t3 + 3 * t2) * b.point + (t3 - t2) * m1;
+    points->push_back(p);
+    length += (p - previous).norm();
+    previous = p;
+  }
+  return length + (b.point - previous).norm();
+}
+
+// `ends` and `partner` of the whole section; the part's open chains are bridged when
+// every end of theirs has a partner.
+SectionPart MakePart(const std::vector<SectionLoop>& loops, std::vector<int> members,
+                     const std::vector<ChainEnd>& ends, const std::vector<int>& partner) {
   SectionPart part;
   part.loops = std::move(members);
   std::vector<cv::Point2f> points;
+  double open_length = 0.0;
   for (int i : part.loops) {
-    part.has_hole |= !loops[i].closed;
+    if (!loops[i].closed) {
+      part.has_hole = true;
+      open_length += ChainLength(loops[i].points);
+    }
     for (const Eigen::Vector2d& p : loops[i].points) points.emplace_back(p.x(), p.y());
+  }
+  if (part.has_hole) {
+    std::vector<Eigen::Vector2d> bridge_points;
+    part.bridged = true;
+    for (int e = 0; e < static_cast<int>(ends.size()) && part.bridged; ++e) {
+      if (std::find(part.loops.begin(), part.loops.end(), ends[e].loop) == part.loops.end()) {
+        continue;
+      }
+      if (partner[e] < 0) {
+        part.bridged = false;
+      } else if (partner[e] > e) {
+        const double gap = (ends[partner[e]].point - ends[e].point).norm();
+        part.largest_bridge_mm = std::max(part.largest_bridge_mm, gap);
+        part.bridged_mm += Bridge(ends[e], ends[partner[e]], &bridge_points);
+      }
+    }
+    if (part.bridged) {
+      for (const Eigen::Vector2d& p : bridge_points) points.emplace_back(p.x(), p.y());
+    } else {
+      part.bridged_mm = part.largest_bridge_mm = 0.0;
+    }
   }
   std::vector<cv::Point2f> hull;
   if (points.size() >= 3) cv::convexHull(points, hull, /*clockwise=*/false);
@@ -121,35 +258,51 @@ SectionPart MakePart(const std::vector<SectionLoop>& loops, std::vector<int> mem
                   : part.hull.empty() ? Eigen::Vector2d::Zero()
                                       : part.hull.front();
   part.contour_mm = ContourLength(loops, part.loops);
+  if (part.bridged) part.contour_mm += open_length + part.bridged_mm;
   return part;
 }
 
 // Groups loops into parts: closed loops that overlap, and open chains near them.
+// Groups loops into parts: closed loops that overlap, open chains joined end to end
+// across their holes (JoinEnds), and open chains lying in a closed loop.
 std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops) {
   const int n = static_cast<int>(loops.size());
   std::vector<Box2> boxes(n);
   for (int i = 0; i < n; ++i) {
     for (const Eigen::Vector2d& p : loops[i].points) boxes[i].Add(p);
   }
+  std::vector<ChainEnd> ends;
+  for (int i = 0; i < n; ++i) {
+    if (loops[i].closed || loops[i].points.size() < 2) continue;
+    for (bool back : {false, true}) {
+      ChainEnd end{i, back ? loops[i].points.back() : loops[i].points.front()};
+      end.out = EndDirection(loops[i].points, back, &end.turn);
+      ends.push_back(end);
+    }
+  }
+  const std::vector<int> partner = JoinEnds(ends);
   std::vector<int> parent(n);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&parent](int v) {
     while (parent[v] != v) v = parent[v] = parent[parent[v]];
     return v;
   };
+  for (int e = 0; e < static_cast<int>(ends.size()); ++e) {
+    if (partner[e] >= 0) parent[find(ends[e].loop)] = find(ends[partner[e]].loop);
+  }
   for (int i = 0; i < n; ++i) {
     for (int j = i + 1; j < n; ++j) {
-      const bool both_closed = loops[i].closed && loops[j].closed;
-      // An open chain joins what lies within 20 mm of it: the hole's rim and its part.
-      if (!boxes[i].Overlaps(boxes[j], both_closed ? 0.0 : 20.0)) continue;
-      if (both_closed && !LoopsTouch(loops[i], loops[j])) continue;
+      if (!loops[i].closed && !loops[j].closed) continue;
+      if (!boxes[i].Overlaps(boxes[j], 0.0) || !LoopsTouch(loops[i], loops[j])) continue;
       parent[find(i)] = find(j);
     }
   }
   std::map<int, std::vector<int>> groups;
   for (int i = 0; i < n; ++i) groups[find(i)].push_back(i);
   std::vector<SectionPart> parts;
-  for (auto& [root, members] : groups) parts.push_back(MakePart(loops, std::move(members)));
+  for (auto& [root, members] : groups) {
+    parts.push_back(MakePart(loops, std::move(members), ends, partner));
+  }
   std::sort(parts.begin(), parts.end(),
             [](const SectionPart& a, const SectionPart& b) { return a.area_mm2 > b.area_mm2; });
   return parts;

@@ -36,6 +36,12 @@ struct SectionPart {
   double area_mm2 = 0.0;              // of the hull
   Eigen::Vector2d centroid = Eigen::Vector2d::Zero();  // of the hull
   bool has_hole = false;                               // an open chain belongs to it
+  // A holed part whose open chains could be joined end to end into one outline by smooth
+  // bridges (cubic curves leaving and entering each chain along its own direction): the
+  // hull, tape, contour and area then include them. bridged_mm is their summed length,
+  // largest_bridge_mm the longest; 0 when nothing was bridged.
+  bool bridged = false;
+  double bridged_mm = 0.0, largest_bridge_mm = 0.0;
 
   bool Contains(const Eigen::Vector2d& p) const;      // inside the hull
   double DistanceTo(const SectionPart& other) const;  // between hulls, 0 when they meet

@@ -59,6 +59,77 @@ TEST(SectionTest, AMissingFaceLeavesAnOpenChainAndMarksAHole) {
   EXPECT_TRUE(s.parts[0].has_hole);
 }
 
+// A closed cylinder of radius `radius` round the vertical line x = `centre_x`, y = 0 from
+// z = 0 to 100, 256 sides, with the side faces whose middle lies within `gap_deg` / 2 of
+// the direction `gap_towards_deg` (from +x) left out between z 20 and 80.
+SurfaceMesh CylinderWithAGap(double gap_deg, double radius = 100.0, double centre_x = 0.0,
+                             double gap_towards_deg = 0.0) {
+  constexpr int kSides = 256;
+  constexpr double kPi = 3.14159265358979323846;
+  SurfaceMesh mesh;
+  const std::vector<double> heights = {0.0, 20.0, 80.0, 100.0};
+  for (double z : heights) {
+    for (int i = 0; i < kSides; ++i) {
+      const double a = 2.0 * kPi * i / kSides;
+      mesh.vertices.emplace_back(centre_x + radius * std::cos(a), radius * std::sin(a), z);
+    }
+  }
+  for (int ring = 0; ring + 1 < static_cast<int>(heights.size()); ++ring) {
+    for (int i = 0; i < kSides; ++i) {
+      const int j = (i + 1) % kSides;
+      double middle = std::remainder(360.0 * (i + 0.5) / kSides - gap_towards_deg, 360.0);
+      if (ring == 1 && std::abs(middle) < gap_deg / 2.0) continue;
+      const int a = ring * kSides + i, b = ring * kSides + j;
+      mesh.triangles.emplace_back(a, b, b + kSides);
+      mesh.triangles.emplace_back(a, b + kSides, a + kSides);
+    }
+  }
+  return mesh;
+}
+
+TEST(SectionTest, AHoleIsBridgedAlongTheOutlinesOwnCurve) {
+  // A quarter of the circle missing: the bridge follows the arc, where the chord across
+  // the gap would make the tape 2 pi r - (pi / 2 - sqrt 2) r = 612.6 mm.
+  const Slicer slicer(CylinderWithAGap(90.0));
+  const Section s = slicer.AtHeight(50.0);
+  ASSERT_EQ(s.parts.size(), 1u);
+  const SectionPart& part = s.parts[0];
+  EXPECT_TRUE(part.has_hole);
+  ASSERT_TRUE(part.bridged);
+  const double circle = 2.0 * 3.14159265358979323846 * 100.0;
+  const double polygon = 256 * 2.0 * 100.0 * std::sin(3.14159265358979323846 / 256);
+  EXPECT_NEAR(part.tape_mm, polygon, 0.1) << "circle " << circle;
+  EXPECT_NEAR(part.contour_mm, polygon, 0.1);
+  EXPECT_NEAR(part.largest_bridge_mm, 100.0 * std::sqrt(2.0), 1.0);
+  // A section through the whole side has no hole and no bridge.
+  const Section whole = slicer.AtHeight(10.0);
+  ASSERT_EQ(whole.parts.size(), 1u);
+  EXPECT_FALSE(whole.parts[0].has_hole);
+  EXPECT_FALSE(whole.parts[0].bridged);
+  EXPECT_EQ(whole.parts[0].bridged_mm, 0.0);
+}
+
+TEST(SectionTest, OpenSidesFacingEachOtherAreNotJoined) {
+  // Two limbs 30 mm apart, each open on the side facing the other (an arm beside the
+  // torso, the thighs below the crotch): their ends point towards each other, but a join
+  // would bend against both. Each is bridged round its own side instead.
+  SurfaceMesh mesh = CylinderWithAGap(90.0, 50.0, 0.0, 0.0);
+  const SurfaceMesh other = CylinderWithAGap(90.0, 50.0, 130.0, 180.0);
+  const int offset = static_cast<int>(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), other.vertices.begin(), other.vertices.end());
+  for (const Eigen::Vector3i& t : other.triangles) {
+    mesh.triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+  }
+  const Section s = Slicer(mesh).AtHeight(50.0);
+  ASSERT_EQ(s.parts.size(), 2u);
+  const double polygon = 256 * 2.0 * 50.0 * std::sin(3.14159265358979323846 / 256);
+  for (const SectionPart& part : s.parts) {
+    EXPECT_TRUE(part.bridged);
+    EXPECT_NEAR(part.tape_mm, polygon, 0.1);
+    EXPECT_NEAR(part.largest_bridge_mm, 50.0 * std::sqrt(2.0), 1.0);
+  }
+}
+
 TEST(SectionTest, TiltedPlaneThroughACube) {
   // The plane x + z = 95 through the L prism's lower bar cuts a rectangle 40 wide (y 0..40)
   // and 50 sqrt 2 long: perimeter 80 + 100 sqrt 2.
