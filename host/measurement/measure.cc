@@ -219,7 +219,7 @@ class Analysis {
       return false;
     }
     const double z_leg = 0.25 * top_;
-    const Section s = slicer_.AtHeight(z_leg);
+    const Section s = slicer_.AtHeight(z_leg, /*join_holes=*/false);
     std::vector<const SectionPart*> parts;
     for (const SectionPart& p : s.parts) {
       if (Significant(p)) parts.push_back(&p);
@@ -240,7 +240,7 @@ class Analysis {
     }
     // Up from there until one part holds both legs: the crotch.
     auto merged = [&](double z, std::array<Eigen::Vector2d, 2>& tracked, bool* hole) {
-      const Section section = slicer_.AtHeight(z);
+      const Section section = slicer_.AtHeight(z, /*join_holes=*/false);
       const int a = PartAt(section, tracked[0], 100.0), b = PartAt(section, tracked[1], 100.0);
       if (a < 0 || b < 0) return true;
       if (hole) *hole = Holed(section.parts[a]) || Holed(section.parts[b]);
@@ -274,10 +274,11 @@ class Analysis {
       }
     }
     crotch_z_ = 0.5 * (lo + hi);
-    // Where the legs first meet, the scan must have seen them meet: joined only by a
-    // bridge across a hole (the crotch is rarely seen), the height is the bridge's guess.
+    // Where the legs first meet, the scan must have seen them meet. Sections here join no
+    // holes: whether two open-sided thighs meet is what a hole hides (the crotch is rarely
+    // seen), and a bridge would guess it.
     {
-      const Section above = slicer_.AtHeight(hi);
+      const Section above = slicer_.AtHeight(hi, /*join_holes=*/false);
       const int joined = PartAt(above, legs[0], 100.0);
       if (joined >= 0 && above.parts[joined].has_hole && !crotch_.withheld) {
         crotch_.withheld = "the legs meet inside a hole at " + Mm(hi) + ": the crotch is not seen";

@@ -264,8 +264,9 @@ SectionPart MakePart(const std::vector<SectionLoop>& loops, std::vector<int> mem
 
 // Groups loops into parts: closed loops that overlap, and open chains near them.
 // Groups loops into parts: closed loops that overlap, open chains joined end to end
-// across their holes (JoinEnds), and open chains lying in a closed loop.
-std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops) {
+// across their holes (JoinEnds), and open chains lying in a closed loop; without
+// `join_holes`, open chains with whatever lies within 20 mm of them.
+std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops, bool join_holes) {
   const int n = static_cast<int>(loops.size());
   std::vector<Box2> boxes(n);
   for (int i = 0; i < n; ++i) {
@@ -280,7 +281,7 @@ std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops) {
       ends.push_back(end);
     }
   }
-  const std::vector<int> partner = JoinEnds(ends);
+  const std::vector<int> partner = join_holes ? JoinEnds(ends) : std::vector<int>(ends.size(), -1);
   std::vector<int> parent(n);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&parent](int v) {
@@ -292,6 +293,11 @@ std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops) {
   }
   for (int i = 0; i < n; ++i) {
     for (int j = i + 1; j < n; ++j) {
+      const bool both_closed = loops[i].closed && loops[j].closed;
+      if (!join_holes && !both_closed) {
+        if (boxes[i].Overlaps(boxes[j], 20.0)) parent[find(i)] = find(j);
+        continue;
+      }
       if (!loops[i].closed && !loops[j].closed) continue;
       if (!boxes[i].Overlaps(boxes[j], 0.0) || !LoopsTouch(loops[i], loops[j])) continue;
       parent[find(i)] = find(j);
@@ -372,14 +378,14 @@ Slicer::Slicer(SurfaceMesh mesh) : mesh_(std::move(mesh)) {
   }
 }
 
-Section Slicer::AtHeight(double z) const {
+Section Slicer::AtHeight(double z, bool join_holes) const {
   static const std::vector<int> kNone;
   const double b = (z - z_min_) / bucket_mm_;
   const std::vector<int>& triangles = (b < 0.0 || b >= static_cast<double>(buckets_.size()))
                                           ? kNone
                                           : buckets_[static_cast<size_t>(b)];
   return Cut(triangles, Eigen::Vector3d(0, 0, z), Eigen::Vector3d::UnitZ(),
-             Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY());
+             Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY(), join_holes);
 }
 
 Section Slicer::ByPlane(const Eigen::Vector3d& origin, const Eigen::Vector3d& normal) const {
@@ -388,12 +394,12 @@ Section Slicer::ByPlane(const Eigen::Vector3d& origin, const Eigen::Vector3d& no
   const Eigen::Vector3d e2 = n.cross(e1);
   std::vector<int> all(mesh_.triangles.size());
   std::iota(all.begin(), all.end(), 0);
-  return Cut(all, origin, n, e1, e2);
+  return Cut(all, origin, n, e1, e2, /*join_holes=*/true);
 }
 
 Section Slicer::Cut(const std::vector<int>& triangles, const Eigen::Vector3d& origin,
                     const Eigen::Vector3d& normal, const Eigen::Vector3d& e1,
-                    const Eigen::Vector3d& e2) const {
+                    const Eigen::Vector3d& e2, bool join_holes) const {
   Section section;
   section.origin = origin;
   section.e1 = e1;
@@ -474,7 +480,7 @@ Section Slicer::Cut(const std::vector<int>& triangles, const Eigen::Vector3d& or
     for (uint64_t key : chain) loop.points.push_back(points[key]);
     section.loops.push_back(std::move(loop));
   }
-  section.parts = GroupParts(section.loops);
+  section.parts = GroupParts(section.loops, join_holes);
   return section;
 }
 

@@ -67,14 +67,17 @@ class Slicer {
   const SurfaceMesh& mesh() const { return mesh_; }
   // The section by the horizontal plane at z, in world x and y. A vertex exactly on the
   // plane counts as above it, so the section is that of the plane an instant lower.
-  Section AtHeight(double z) const;
+  // Without `join_holes` open chains are neither joined nor bridged (SectionPart): an open
+  // chain is one part with what lies within 20 mm of it, as where a hole hides whether two
+  // limbs meet (the crotch), a bridge must not decide it.
+  Section AtHeight(double z, bool join_holes = true) const;
   // The section by the plane through `origin` with normal `normal`.
   Section ByPlane(const Eigen::Vector3d& origin, const Eigen::Vector3d& normal) const;
 
  private:
   Section Cut(const std::vector<int>& triangles, const Eigen::Vector3d& origin,
-              const Eigen::Vector3d& normal, const Eigen::Vector3d& e1,
-              const Eigen::Vector3d& e2) const;
+              const Eigen::Vector3d& normal, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2,
+              bool join_holes) const;
 
   SurfaceMesh mesh_;
   double z_min_ = 0.0, bucket_mm_ = 10.0;
