@@ -430,9 +430,11 @@ class Analysis {
         top_point = v;
       }
     }
-    const Section s = slicer_.AtHeight(head_top - 2.0);
+    // A bridge does not make the top seen: any hole near it leaves the highest vertex on
+    // its rim, below the true top.
+    const Section s = slicer_.AtHeight(head_top - 2.0, /*join_holes=*/false);
     const int head = BodyPart(s);
-    if (head < 0 || Holed(s.parts[head])) {
+    if (head < 0 || s.parts[head].has_hole || NearBorder(top_point, top_point, 30.0)) {
       m.withheld = "a hole at the top of the head";
     } else {
       m.value_mm = head_top;

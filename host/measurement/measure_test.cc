@@ -174,6 +174,17 @@ TEST(MannequinMeasureTest, ArmsAgainstTheTorsoWithholdItsGirths) {
   ExpectMeasured(body, "hip_girth", Truth(truth, "hip_girth_mm"), 3.0);
 }
 
+// The mesh without the triangles whose centre lies within `radius` of `centre`.
+SurfaceMesh CutOut(const SurfaceMesh& mesh, const Eigen::Vector3d& centre, double radius) {
+  SurfaceMesh cut;
+  cut.vertices = mesh.vertices;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Eigen::Vector3d c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
+    if ((c - centre).norm() >= radius) cut.triangles.push_back(t);
+  }
+  return cut;
+}
+
 // The mannequin with the front of its waist cut out (a ball of `waist_hole_mm` round)
 // and the top of its head (25 mm).
 SurfaceMesh MannequinWithHoles(const vc::Subject& subject, double waist_hole_mm) {
@@ -213,6 +224,18 @@ TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
   ExpectMeasured(body, "crotch_height", truth.at("crotch_height_mm").get<double>(), 2.0);
 }
 
+// The top of the head is not seen through even a small hole there: the highest vertex
+// is then its rim, below the true top.
+TEST(MannequinMeasureTest, ASmallHoleAtTheTopOfTheHeadWithholdsTheStature) {
+  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+  const BodyMeasurements body =
+      MeasureBody(CutOut(ToSurface(subject.mesh), Eigen::Vector3d(0, 0, 1750.0), 10.0));
+  EXPECT_FALSE(body.stature_mm);
+  const Measurement* m = body.Find("stature");
+  ASSERT_TRUE(m && m->withheld);
+  EXPECT_NE(m->withheld->find("top of the head"), std::string::npos) << *m->withheld;
+}
+
 // A small hole is bridged along the section's own curve: the waist across a hole of up to
 // 36 mm comes out as the whole surface's, with a confidence that says part of it was not
 // seen.
@@ -227,17 +250,6 @@ TEST(MannequinMeasureTest, ASmallHoleIsBridged) {
   EXPECT_NEAR(*h->value_mm, *w->value_mm, 0.1);
   EXPECT_LT(h->confidence, 0.99);
   EXPECT_GT(h->confidence, 0.9);
-}
-
-// The mesh without the triangles whose centre lies within `radius` of `centre`.
-SurfaceMesh CutOut(const SurfaceMesh& mesh, const Eigen::Vector3d& centre, double radius) {
-  SurfaceMesh cut;
-  cut.vertices = mesh.vertices;
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    const Eigen::Vector3d c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
-    if ((c - centre).norm() >= radius) cut.triangles.push_back(t);
-  }
-  return cut;
 }
 
 // A line through a hole crosses nothing there: with the arm's end or the shoulder cut
