@@ -262,7 +262,6 @@ SectionPart MakePart(const std::vector<SectionLoop>& loops, std::vector<int> mem
   return part;
 }
 
-// Groups loops into parts: closed loops that overlap, and open chains near them.
 // Groups loops into parts: closed loops that overlap, open chains joined end to end
 // across their holes (JoinEnds), and open chains lying in a closed loop; without
 // `join_holes`, open chains with whatever lies within 20 mm of them.
