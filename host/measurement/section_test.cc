@@ -1,6 +1,7 @@
 #include "host/measurement/section.h"
 
 #include <cmath>
+#include <numbers>
 
 #include <gtest/gtest.h>
 
@@ -65,12 +66,11 @@ TEST(SectionTest, AMissingFaceLeavesAnOpenChainAndMarksAHole) {
 SurfaceMesh CylinderWithAGap(double gap_deg, double radius = 100.0, double centre_x = 0.0,
                              double gap_towards_deg = 0.0) {
   constexpr int kSides = 256;
-  constexpr double kPi = 3.14159265358979323846;
   SurfaceMesh mesh;
   const std::vector<double> heights = {0.0, 20.0, 80.0, 100.0};
   for (double z : heights) {
     for (int i = 0; i < kSides; ++i) {
-      const double a = 2.0 * kPi * i / kSides;
+      const double a = 2.0 * std::numbers::pi * i / kSides;
       mesh.vertices.emplace_back(centre_x + radius * std::cos(a), radius * std::sin(a), z);
     }
   }
@@ -96,9 +96,8 @@ TEST(SectionTest, AHoleIsBridgedAlongTheOutlinesOwnCurve) {
   const SectionPart& part = s.parts[0];
   EXPECT_TRUE(part.has_hole);
   ASSERT_TRUE(part.bridged);
-  const double circle = 2.0 * 3.14159265358979323846 * 100.0;
-  const double polygon = 256 * 2.0 * 100.0 * std::sin(3.14159265358979323846 / 256);
-  EXPECT_NEAR(part.tape_mm, polygon, 0.1) << "circle " << circle;
+  const double polygon = 256 * 2.0 * 100.0 * std::sin(std::numbers::pi / 256);
+  EXPECT_NEAR(part.tape_mm, polygon, 0.1);
   EXPECT_NEAR(part.contour_mm, polygon, 0.1);
   EXPECT_NEAR(part.largest_bridge_mm, 100.0 * std::sqrt(2.0), 1.0);
   // A section through the whole side has no hole and no bridge.
@@ -122,7 +121,7 @@ TEST(SectionTest, OpenSidesFacingEachOtherAreNotJoined) {
   }
   const Section s = Slicer(mesh).AtHeight(50.0);
   ASSERT_EQ(s.parts.size(), 2u);
-  const double polygon = 256 * 2.0 * 50.0 * std::sin(3.14159265358979323846 / 256);
+  const double polygon = 256 * 2.0 * 50.0 * std::sin(std::numbers::pi / 256);
   for (const SectionPart& part : s.parts) {
     EXPECT_TRUE(part.bridged);
     EXPECT_NEAR(part.tape_mm, polygon, 0.1);
