@@ -4,6 +4,8 @@
 #include <string>
 #include <utility>
 
+#include <spdlog/spdlog.h>
+
 #include "firmware/hal/hardware_error.h"
 #include "firmware/hal/libcamera/libcamera_loader.h"
 #include "firmware/hal/modbus/modbus_slide_drive.h"
@@ -19,6 +21,10 @@ std::unique_ptr<hal::SlideDrive> MakeDrive(const BoardConfig& config, BoardDevic
     return std::make_unique<hal::ModbusSlideDrive>(config.drive.modbus);
   }
   devices.drive_sim = virtual_cabinet::DriveSim::ServeTcp({});
+  if (!devices.drive_sim->realtime_error().empty()) {
+    spdlog::warn("virtual drive: {}; on a busy machine it may answer late",
+                 devices.drive_sim->realtime_error());
+  }
   // Both ends default to the same register map (common/modbus/register_map.h).
   hal::ModbusDriveConfig modbus;
   modbus.host = "127.0.0.1";

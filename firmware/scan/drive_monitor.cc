@@ -4,6 +4,9 @@
 #include <cmath>
 #include <limits>
 
+#include <spdlog/spdlog.h>
+
+#include "common/realtime/realtime.h"
 #include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
 
@@ -18,7 +21,11 @@ constexpr int64_t kMaxExtrapolationPeriods = 3;
 }  // namespace
 
 DriveMonitor::DriveMonitor(hal::SlideDrive& drive, std::chrono::nanoseconds period)
-    : drive_(drive), period_(period), thread_([this] { Run(); }) {}
+    : drive_(drive), period_(period), thread_([this] { Run(); }) {
+  // A monitor held off by a busy machine would look like a drive gone silent.
+  if (const std::string why = RunThreadFirst(thread_, 20); !why.empty())
+    spdlog::warn("drive monitor: {}; on a busy machine the drive may seem silent", why);
+}
 
 DriveMonitor::~DriveMonitor() {
   {
@@ -59,7 +66,12 @@ void DriveMonitor::Run() {
     }
     next += period_;
     const auto now = std::chrono::steady_clock::now();
-    if (next < now) next = now;  // after a slow exchange, keep the rate, do not catch up
+    // After a slow or failed exchange (a silent drive takes its retries), keep the rate,
+    // do not catch up, and leave the link free for a while: polling straight on would
+    // take the drive's lock again at once, and from a real-time thread that shuts out the
+    // control loop's and the supervisor's commands (Stop) for as long as the drive is
+    // silent.
+    if (next < now) next = now + period_ / 2;
     wake_.wait_until(lock, next, [&] { return stop_; });
   }
 }

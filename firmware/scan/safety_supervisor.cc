@@ -4,6 +4,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include "common/realtime/realtime.h"
 #include "firmware/hal/clock.h"
 
 namespace mirrorscan::scan {
@@ -16,7 +17,11 @@ SafetySupervisor::SafetySupervisor(hal::LaserBank& lasers, hal::SlideDrive& driv
       monitor_(monitor),
       options_(options),
       on_trip_(std::move(on_trip)),
-      thread_([this] { Run(); }) {}
+      thread_([this] { Run(); }) {
+  // Above the drive monitor, whose answers it judges.
+  if (const std::string why = RunThreadFirst(thread_, 30); !why.empty())
+    spdlog::warn("supervisor: {}; on a busy machine its checks may come late", why);
+}
 
 SafetySupervisor::~SafetySupervisor() {
   {
@@ -101,10 +106,13 @@ std::string SafetySupervisor::CheckArmed(int64_t now_ns) {
         sample && sample->status.fault) {
       return "drive fault " + std::to_string(sample->status.fault_code);
     }
-    if (now_ns - std::max(monitor_.last_good_ns(), armed_ns_.load()) >
-        options_.drive_stale.count()) {
+    const int64_t last_good_ns = monitor_.last_good_ns();
+    if (now_ns - std::max(last_good_ns, armed_ns_.load()) > options_.drive_stale.count()) {
+      // The age tells a lost link (growing) from a monitor that was held off (just over).
       const std::string error = monitor_.last_error();
-      return "drive not answering" + (error.empty() ? std::string() : ": " + error);
+      return "drive not answering (last answer " +
+             std::to_string((now_ns - last_good_ns) / 1000000) + " ms ago)" +
+             (error.empty() ? std::string() : ": " + error);
     }
   }
   return "";

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cmath>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -458,7 +459,14 @@ TEST_F(SequencerTest, DriveNotAnsweringTrips) {
   const std::optional<Trip> trip = sequencer_->last_trip();
   ASSERT_TRUE(trip.has_value());
   EXPECT_LE(trip->safe_ns - trip->detected_ns, 50 * kMs);
-  EXPECT_NE(sequencer_->Status().reason.find("drive not answering"), std::string::npos);
+  // The reason says how old the last answer was: at least drive_stale, and not the age
+  // of some answer from before the silence began.
+  const std::string reason = sequencer_->Status().reason;
+  int age_ms = -1;
+  ASSERT_EQ(std::sscanf(reason.c_str(), "drive not answering (last answer %d ms ago)", &age_ms), 1)
+      << reason;
+  EXPECT_GE(age_ms, 150) << reason;
+  EXPECT_LE(age_ms * kMs, hal::SteadyNowNs() - silent_ns + 20 * kMs) << reason;
   const ScanArchive archive = ExpectStored(id, store::ScanState::kFault, "fault");
   // The supervisor's Stop() to the silent drive takes its retries (~0.3 s) before the
   // control loop hears of the trip; frames keep arriving meanwhile. Those exposed once the

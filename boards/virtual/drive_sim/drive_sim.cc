@@ -18,6 +18,8 @@
 
 #include <modbus.h>
 
+#include "common/realtime/realtime.h"
+
 namespace mirrorscan::virtual_cabinet {
 namespace {
 
@@ -79,6 +81,7 @@ std::unique_ptr<DriveSim> DriveSim::ServeTcp(const DriveSimConfig& config) {
   modbus_set_slave(sim->ctx_, config.slave_id);
   modbus_set_indication_timeout(sim->ctx_, 1, 0);  // a partial request never blocks for long
   sim->thread_ = std::thread([s = sim.get()] { s->Run(); });
+  sim->realtime_error_ = RunThreadFirst(sim->thread_, 20);
   return sim;
 }
 
@@ -107,6 +110,7 @@ std::unique_ptr<DriveSim> DriveSim::ServeRtu(const DriveSimConfig& config) {
   modbus_set_slave(sim->ctx_, config.slave_id);
   modbus_set_indication_timeout(sim->ctx_, 1, 0);
   sim->thread_ = std::thread([s = sim.get()] { s->Run(); });
+  sim->realtime_error_ = RunThreadFirst(sim->thread_, 20);
   return sim;
 }
 

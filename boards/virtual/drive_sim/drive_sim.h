@@ -45,6 +45,9 @@ class DriveSim {
 
   int port() const { return port_; }                     // TCP
   const std::string& device() const { return device_; }  // RTU: the pty path to open
+  // Why its thread could not be made to run first (RunThreadFirst), or "": hardware
+  // answers whatever the host is doing, so the simulated drive should too.
+  const std::string& realtime_error() const { return realtime_error_; }
 
   DriveSimState State();  // advanced to now
 
@@ -76,6 +79,7 @@ class DriveSim {
   int wake_fds_[2] = {-1, -1};
   int port_ = 0;
   std::string device_;
+  std::string realtime_error_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> drop_{false};
   std::atomic<bool> responding_{true};
