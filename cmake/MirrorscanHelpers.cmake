@@ -29,8 +29,12 @@ function(mirrorscan_add_executable)
   target_link_libraries(${ARG_NAME} PRIVATE ${ARG_DEPS})
 endfunction()
 
+# ONE_PROCESS: ctest runs the binary once, as one test named NAME, instead of a process per
+# test case; for suites whose cases share an expensive setup (a static table, a
+# SetUpTestSuite) that a process per case would redo. COST (seconds, about) lets ctest start
+# such a long test first on a clean build, where it has no timings yet.
 function(mirrorscan_add_test)
-  cmake_parse_arguments(ARG "" "NAME;TIMEOUT" "SRCS;DEPS;LABELS;FIXTURES" ${ARGN})
+  cmake_parse_arguments(ARG "ONE_PROCESS" "NAME;TIMEOUT;COST" "SRCS;DEPS;LABELS;FIXTURES" ${ARGN})
   add_executable(${ARG_NAME} ${ARG_SRCS})
   _mirrorscan_common(${ARG_NAME})
   # Tests may use what product code may not (cmake/CheckHostLayering.cmake).
@@ -51,9 +55,17 @@ function(mirrorscan_add_test)
     target_compile_definitions(${ARG_NAME} PRIVATE
         MIRRORSCAN_TEST_DATA_DIR="${CMAKE_BINARY_DIR}/test-data")
   endif()
-  # PRE_TEST: discovery runs at ctest time, so the cross build discovers under qemu.
-  gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120
-      PROPERTIES ${_properties})
+  if(ARG_COST)
+    list(APPEND _properties COST ${ARG_COST})
+  endif()
+  if(ARG_ONE_PROCESS)
+    add_test(NAME ${ARG_NAME} COMMAND ${ARG_NAME})
+    set_tests_properties(${ARG_NAME} PROPERTIES ${_properties})
+  else()
+    # PRE_TEST: discovery runs at ctest time, so the cross build discovers under qemu.
+    gtest_discover_tests(${ARG_NAME} DISCOVERY_MODE PRE_TEST DISCOVERY_TIMEOUT 120
+        PROPERTIES ${_properties})
+  endif()
 endfunction()
 
 function(mirrorscan_add_benchmark)
