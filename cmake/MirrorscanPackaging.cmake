@@ -190,4 +190,4 @@ include(CPack)
 # machine (CMAKE_CROSSCOMPILING_EMULATOR only wraps executable targets).
 add_test(NAME packages_test
          COMMAND bash ${PROJECT_SOURCE_DIR}/tests/packages_test.sh ${CMAKE_BINARY_DIR} ${_deb_arch})
-set_tests_properties(packages_test PROPERTIES TIMEOUT 600 LABELS packages)
+set_tests_properties(packages_test PROPERTIES TIMEOUT 600 LABELS packages COST 30)

@@ -3,6 +3,7 @@
 // that cannot give a body; exit 2 for usage errors.
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -68,7 +69,8 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
   const Result r = RunMirrorscan(Process(*dir_, "--formats ply,obj --preview-height 300"));
   ASSERT_EQ(r.exit_code, 0) << r.out;
   for (const char* name :
-       {"points.ply", "mesh.ply", "mesh.obj", "summary.json", "preview-front.png",
+       {"points.ply", "mesh.ply", "mesh.obj", "summary.json", "measurements.json",
+        "preview-measurements.png", "preview-front.png",
         "preview-back.png", "preview-left.png", "preview-right.png", "preview-cloud-views.png",
         "preview-cloud-cameras.png"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
@@ -94,6 +96,37 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
     EXPECT_TRUE(summary["timings_s"].contains(stage)) << stage;
   }
   EXPECT_TRUE(summary.contains("measurements"));
+
+  // The measurements of the scanned surface against the mannequin's analytic truth (the
+  // sim's, not the measuring code's): each value within the bounds (girths 3 mm,
+  // heights and lengths 2 mm) or withheld with a reason; never a number where the scan
+  // has none. Waist and hip are seen whole on this scan and must be given.
+  const Result truth_run = RunMirrorscan("sim subject --scene " + SceneFile("mannequin") +
+                                         " --out " + (*dir_ / "subject.ply").string() +
+                                         " --truth " + (*dir_ / "truth.json").string());
+  ASSERT_EQ(truth_run.exit_code, 0) << truth_run.out;
+  const nlohmann::json truth = JsonReader::ParseFile(*dir_ / "truth.json").at("truth");
+  const nlohmann::json measured = JsonReader::ParseFile(out / "measurements.json");
+  ASSERT_GE(measured.at("measurements").size(), 10u);
+  std::set<std::string> given;
+  for (const nlohmann::json& m : measured.at("measurements")) {
+    const std::string name = m.at("name");
+    if (!m.at("withheld").is_null()) {
+      EXPECT_FALSE(m.at("withheld").get<std::string>().empty()) << name;
+      EXPECT_TRUE(m.at("value_mm").is_null()) << name;
+      continue;
+    }
+    given.insert(name);
+    std::string key = name;
+    for (const std::string side : {"_left", "_right"}) {
+      if (key.size() > side.size() && key.ends_with(side)) key.resize(key.size() - side.size());
+    }
+    ASSERT_TRUE(truth.contains(key + "_mm")) << name;
+    const double bound = name.find("girth") != std::string::npos ? 3.0 : 2.0;
+    EXPECT_NEAR(m.at("value_mm").get<double>(), truth.at(key + "_mm").get<double>(), bound)
+        << name;
+  }
+  EXPECT_TRUE(given.count("waist_girth") && given.count("hip_girth"));
 }
 
 TEST_F(ProcessCli, MeshCommandMeshesTheCloud) {
