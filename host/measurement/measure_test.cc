@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "boards/virtual/subjects.h"
+#include "host/measurement/section.h"
 
 namespace mirrorscan::measurement {
 namespace {
@@ -271,6 +272,45 @@ TEST(MannequinMeasureTest, HolesAtAnArmsEndsWithholdItsLandmarks) {
       EXPECT_NE(m->withheld->find(c.reason), std::string::npos) << name << ": " << *m->withheld;
     }
     ExpectMeasured(body, "arm_length_right", Truth(truth, "arm_length_mm"), 2.0);
+  }
+}
+
+// Turned 45°, one leg stands behind the other as the camera sees them and a scan leaves the
+// side of one that faces the other open, from the ankle to the thigh: an open chain beside
+// the other leg's closed outline. It is still a leg (an open chain is grouped with what lies
+// within 20 mm of its outline, not of its box: legs side by side at 45° have overlapping
+// boxes): the body is human, and what the hole does not cross stands.
+TEST(MannequinMeasureTest, ALegOpenOnTheSideFacingTheOtherIsStillALeg) {
+  vc::MannequinParams params;
+  params.yaw_deg = -45.0;
+  const vc::Subject subject = vc::MakeMannequin(params);
+  const nlohmann::json& truth = subject.metadata.at("truth");
+  SurfaceMesh mesh = ToSurface(subject.mesh);
+  // The legs' centres and radius from the exact section at 450 mm.
+  const Section legs = Slicer(mesh).AtHeight(450.0);
+  ASSERT_GE(legs.parts.size(), 2u);
+  const Eigen::Vector2d a = legs.parts[0].centroid, b = legs.parts[1].centroid;
+  const double radius = legs.parts[1].tape_mm / (2.0 * std::numbers::pi);
+  const Eigen::Vector2d inner = b + radius * (a - b).normalized();
+  for (double z = 120.0; z <= 620.0; z += 25.0) {
+    mesh = CutOut(mesh, Eigen::Vector3d(inner.x(), inner.y(), z), 0.6 * radius);
+  }
+  const Section open = Slicer(mesh).AtHeight(450.0, /*join_holes=*/false);
+  int open_chains = 0;
+  for (const SectionLoop& loop : open.loops) open_chains += loop.closed ? 0 : 1;
+  ASSERT_GE(open_chains, 1);  // the cut opened the leg
+
+  const BodyMeasurements body = MeasureBody(mesh);
+  EXPECT_TRUE(body.human);
+  // The crotch is withheld while a hole crosses a leg where the legs are first found; the
+  // hip above it is searched from the crotch the legs give, so it stands only on a right one.
+  const Measurement* crotch = body.Find("crotch_height");
+  ASSERT_TRUE(crotch && crotch->withheld);
+  EXPECT_NE(crotch->withheld->find("a hole crosses the legs"), std::string::npos)
+      << *crotch->withheld;
+  for (const char* girth : {"hip", "waist", "chest"}) {
+    ExpectMeasured(body, std::string(girth) + "_girth",
+                   Truth(truth, std::string(girth) + "_girth_mm"), 3.0);
   }
 }
 

@@ -70,6 +70,19 @@ bool LoopsTouch(const SectionLoop& a, const SectionLoop& b) {
   return false;
 }
 
+// Some point of `a` within `distance` of some point of `b` (the points lie a few mm
+// apart). Not the boxes: two legs side by side at 45° have overlapping boxes while their
+// outlines are far apart.
+bool ChainsWithin(const SectionLoop& a, const SectionLoop& b, double distance) {
+  const double d2 = distance * distance;
+  for (const Eigen::Vector2d& p : a.points) {
+    for (const Eigen::Vector2d& q : b.points) {
+      if ((p - q).squaredNorm() <= d2) return true;
+    }
+  }
+  return false;
+}
+
 // Followed outline: the edges of each loop not inside another loop of the part.
 double ContourLength(const std::vector<SectionLoop>& loops, const std::vector<int>& members) {
   double length = 0.0;
@@ -275,7 +288,8 @@ std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops, bool 
   for (int i = 0; i < n; ++i) {
     if (loops[i].closed || loops[i].points.size() < 2) continue;
     for (bool back : {false, true}) {
-      ChainEnd end{i, back ? loops[i].points.back() : loops[i].points.front()};
+      ChainEnd end{i, back ? loops[i].points.back() : loops[i].points.front(),
+                   Eigen::Vector2d::Zero()};
       end.out = EndDirection(loops[i].points, back, &end.turn);
       ends.push_back(end);
     }
@@ -294,7 +308,9 @@ std::vector<SectionPart> GroupParts(const std::vector<SectionLoop>& loops, bool 
     for (int j = i + 1; j < n; ++j) {
       const bool both_closed = loops[i].closed && loops[j].closed;
       if (!join_holes && !both_closed) {
-        if (boxes[i].Overlaps(boxes[j], 20.0)) parent[find(i)] = find(j);
+        if (boxes[i].Overlaps(boxes[j], 20.0) && ChainsWithin(loops[i], loops[j], 20.0)) {
+          parent[find(i)] = find(j);
+        }
         continue;
       }
       if (!loops[i].closed && !loops[j].closed) continue;
