@@ -53,9 +53,10 @@ class DeviceApiTest : public ::testing::Test {
                                                    .peaks_per_frame = 500});
     calibration_ =
         std::make_unique<service::CalibrationStore>(dir_ / "device" / "calibration.json");
-    server_ =
-        std::make_unique<service::ApiServer>(*store_, *control_, board_, *calibration_, kToken,
-                                             service::ApiServerOptions{.firmware_version = "test"});
+    service::ApiServerOptions options;
+    options.firmware_version = "test";
+    server_ = std::make_unique<service::ApiServer>(*store_, *control_, board_, *calibration_,
+                                                   kToken, options);
     port_ = server_->Start("127.0.0.1:0");
   }
 

@@ -844,7 +844,9 @@ TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
       // The camera looks at the margin over the cylinder's top.
       for (double f = 0; f <= 1.0; f += 0.001) {
         const Eigen::Vector3d q = p + f * (camera_centre - p);
-        if ((q.head<2>() - centre).norm() <= kRadius) ASSERT_GT(q.z(), kTop);
+        if ((q.head<2>() - centre).norm() <= kRadius) {
+          ASSERT_GT(q.z(), kTop);
+        }
       }
       const auto px = pixel_of(p);
       ASSERT_TRUE(px);

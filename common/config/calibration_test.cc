@@ -48,7 +48,7 @@ Calibration Example() {
     m.panel_offset_mm = 6.0;
     c.mirrors.push_back(m);
   }
-  c.lasers = CalibrationLasers{3, 200.0, Eigen::Vector3d::UnitZ(), -50.0, 150.0};
+  c.lasers = CalibrationLasers{3, 200.0, Eigen::Vector3d::UnitZ(), -50.0, 150.0, {}, std::nullopt};
   c.residuals.reprojection_rms_px = 0.08;
   c.residuals.views.push_back({"upper", "left", 0.09, 0.3, 256});
   return c;
