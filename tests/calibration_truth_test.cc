@@ -177,7 +177,7 @@ TEST(CalibrationTruth, BumpedRightMirrorIsWorseOnItsSide) {
   // Had it been kept: over a sweep of the bumped cabinet no plane stands in for the bumped
   // mirror, and fitting one pulls the poses and the other mirror along, so every view is
   // off, the right ones most (docs/calibration.md's table: 0.87 px RMS there, 2.4 mm).
-  // Every 30th frame: the bumped mirror's truth takes ~0.8 s a frame (its light and images
+  // Every 30th frame: the bumped mirror's truth takes ~2.4 s a frame (its light and images
   // are solved, not reflected), and the right views still get ~3,000 points each.
   const Scene bumped = LoadScene("mannequin.json", bump);
   constexpr int kBumpedFrameStep = 30;
