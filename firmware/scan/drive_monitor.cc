@@ -87,9 +87,13 @@ int64_t DriveMonitor::last_good_ns() const {
   return last_good_ns_;
 }
 
-std::string DriveMonitor::last_error() const {
+std::string DriveMonitor::NotAnswering(int64_t now_ns) const {
   std::lock_guard lock(mutex_);
-  return last_error_;
+  const std::string age =
+      last_good_ns_ == 0
+          ? "no answer yet"
+          : "last answer " + std::to_string((now_ns - last_good_ns_) / 1000000) + " ms ago";
+  return "drive not answering (" + age + ")" + (last_error_.empty() ? "" : ": " + last_error_);
 }
 
 void DriveMonitor::SetTarget(std::optional<double> target_mm) {

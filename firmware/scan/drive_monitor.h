@@ -38,8 +38,10 @@ class DriveMonitor {
   std::optional<DriveSample> Latest() const;
   // Steady time of the last good answer (0 before the first).
   int64_t last_good_ns() const;
-  // The last link error, "" after a good answer.
-  std::string last_error() const;
+  // The reason for a fault on silence: "drive not answering (last answer N ms ago)" (or
+  // "(no answer yet)") and the last error. The age tells a lost link (growing) from a
+  // monitor that was held off (just over the limit).
+  std::string NotAnswering(int64_t now_ns) const;
   // The position at `time_ns`: linear between the two samples around it; after the newest
   // one, extrapolated at the last few samples' velocity (at most 3 periods ahead); the
   // oldest before the history. NaN without samples.

@@ -1,13 +1,16 @@
 #include "firmware/scan/drive_monitor.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
 
 #include "firmware/hal/clock.h"
+#include "firmware/hal/hardware_error.h"
 
 namespace mirrorscan::scan {
 namespace {
@@ -47,6 +50,62 @@ class ClockDrive final : public hal::SlideDrive {
   const milliseconds exchange_;
   const int64_t t0_ = hal::SteadyNowNs();
 };
+
+// A drive whose link answers until told to fail, then times out on every exchange.
+class FailingDrive final : public hal::SlideDrive {
+ public:
+  explicit FailingDrive(bool answering) : answering_(answering) {}
+  void Fail() { answering_ = false; }
+  void Enable(bool) override {}
+  void StartHome() override {}
+  void SetSpeed(double) override {}
+  void Start(double) override {}
+  void ResetFault() override {}
+  double Position() override { return Answer(), 0.0; }
+  hal::SlideStatus Status() override {
+    return Answer(), hal::SlideStatus{true, true, true, false, 0};
+  }
+
+ protected:
+  void DoStop() override {}
+
+ private:
+  void Answer() const {
+    if (!answering_) throw hal::HardwareError(hal::HardwareError::Kind::kTimeout, "link timed out");
+  }
+  std::atomic<bool> answering_;
+};
+
+// The silence's reason: the last answer's age against the clock, or that none came, and the
+// link's error.
+TEST(DriveMonitor, NotAnsweringGivesTheLastAnswersAgeAndTheError) {
+  FailingDrive never(false);
+  {
+    const DriveMonitor monitor(never, milliseconds(10));
+    std::this_thread::sleep_for(milliseconds(50));
+    EXPECT_EQ(monitor.NotAnswering(hal::SteadyNowNs()),
+              "drive not answering (no answer yet): link timed out");
+  }
+  FailingDrive drive(true);
+  const DriveMonitor monitor(drive, milliseconds(10));
+  std::this_thread::sleep_for(milliseconds(50));
+  drive.Fail();
+  const int64_t failed_ns = hal::SteadyNowNs();
+  std::this_thread::sleep_for(milliseconds(200));
+  const int64_t now_ns = hal::SteadyNowNs();
+  int age_ms = -1;
+  char error[64] = {};
+  const std::string reason = monitor.NotAnswering(now_ns);
+  ASSERT_EQ(std::sscanf(reason.c_str(), "drive not answering (last answer %d ms ago): %63[^\n]",
+                        &age_ms, error),
+            2)
+      << reason;
+  EXPECT_STREQ(error, "link timed out");
+  // The last answer came before the failure and about a poll (10 ms) earlier; 50 ms allows
+  // for a late wake-up under qemu.
+  EXPECT_GE(age_ms, (now_ns - failed_ns) / 1000000) << reason;
+  EXPECT_LE(age_ms, (now_ns - failed_ns) / 1000000 + 50) << reason;
+}
 
 TEST(DriveMonitor, ReadbackOfAFrameAfterTheNewestSampleDoesNotLag) {
   ClockDrive drive(milliseconds(2));

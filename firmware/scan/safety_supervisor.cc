@@ -106,13 +106,9 @@ std::string SafetySupervisor::CheckArmed(int64_t now_ns) {
         sample && sample->status.fault) {
       return "drive fault " + std::to_string(sample->status.fault_code);
     }
-    const int64_t last_good_ns = monitor_.last_good_ns();
-    if (now_ns - std::max(last_good_ns, armed_ns_.load()) > options_.drive_stale.count()) {
-      // The age tells a lost link (growing) from a monitor that was held off (just over).
-      const std::string error = monitor_.last_error();
-      return "drive not answering (last answer " +
-             std::to_string((now_ns - last_good_ns) / 1000000) + " ms ago)" +
-             (error.empty() ? std::string() : ": " + error);
+    if (now_ns - std::max(monitor_.last_good_ns(), armed_ns_.load()) >
+        options_.drive_stale.count()) {
+      return monitor_.NotAnswering(now_ns);
     }
   }
   return "";

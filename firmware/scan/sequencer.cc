@@ -372,12 +372,9 @@ void Sequencer::Step() {
   if (supervisor_->tripped()) return;  // its report is on the way
   const int64_t now_ns = hal::SteadyNowNs();
   const int64_t stale_ns = options_.supervisor.drive_stale.count();
-  const int64_t last_good_ns = monitor_->last_good_ns();
-  if (now_ns - std::max(last_good_ns, command_ns_) > stale_ns) {
+  if (now_ns - std::max(monitor_->last_good_ns(), command_ns_) > stale_ns) {
     // While sweeping the supervisor trips on this too; before that only the loop watches.
-    const std::string error = monitor_->last_error();
-    Fail("drive not answering (last answer " + std::to_string((now_ns - last_good_ns) / 1000000) +
-         " ms ago)" + (error.empty() ? std::string() : ": " + error));
+    Fail(monitor_->NotAnswering(now_ns));
     return;
   }
   if (state == SequencerState::kArming) {
