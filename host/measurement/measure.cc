@@ -28,6 +28,13 @@ constexpr double kFullConfidenceGapMm = 20.0;  // a neighbour nearer than this l
 // bridges are at most this share of the outline; beyond, the section counts as holed.
 constexpr double kMaxBridgeMm = 40.0;
 constexpr double kMaxBridgedShare = 0.1;
+// The top of the head across a hole (ExtrapolateHeadTop): the closed sections every step
+// over this span below the highest vertex, and a top at most this far above the highest
+// of them. At 20 mm the quadratic's own error is 0.3 mm for a head whose profile is
+// |z/c|^2.2 rather than an ellipse's ^2, 0.9 mm for ^2.5 (docs/measurement.md).
+constexpr double kCapSpanMm = 50.0;
+constexpr double kCapFitStepMm = 1.0;
+constexpr double kCapMaxExtrapolationMm = 20.0;
 
 std::string Mm(double x) {
   std::ostringstream out;
@@ -435,15 +442,94 @@ class Analysis {
     const Section s = slicer_.AtHeight(head_top - 2.0, /*join_holes=*/false);
     const int head = BodyPart(s);
     if (head < 0 || s.parts[head].has_hole || NearBorder(top_point, top_point, 30.0)) {
-      m.withheld = "a hole at the top of the head";
+      const CapTop cap = ExtrapolateHeadTop(head_top);
+      if (cap.withheld) {
+        m.withheld = "a hole at the top of the head: " + *cap.withheld;
+      } else {
+        m.value_mm = cap.z;
+        m.confidence = cap.confidence;
+        out_.landmarks.push_back({"top_of_head", cap.point});
+      }
     } else {
       m.value_mm = head_top;
       m.confidence = 1.0;
-      out_.stature_mm = head_top;
       out_.landmarks.push_back({"top_of_head", top_point});
     }
-    if (m.withheld) out_.stature_withheld = m.withheld;
+    if (m.withheld) {
+      out_.stature_withheld = m.withheld;
+    } else {
+      out_.stature_mm = m.value_mm;
+    }
     Add(m);
+  }
+
+  struct CapTop {
+    double z = 0.0, confidence = 0.0;
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();
+    std::optional<std::string> withheld;
+  };
+
+  // Horizontal laser planes graze the top of the head, so a scan often leaves a hole
+  // there. Near a smooth convex top a horizontal section's area grows as
+  // A(h) = a1 h + a2 h^2 + O(h^3) with the depth h below the top (exactly so for an
+  // ellipsoid), so the top is where a quadratic fitted to the areas of the closed sections
+  // below the hole falls to zero. Only a short way up is trusted: the error grows with it.
+  CapTop ExtrapolateHeadTop(double highest) const {
+    CapTop cap;
+    // Every closed section of the head over the span below its highest vertex; a section
+    // a hole crosses is left out, not the ones below it.
+    std::vector<double> zs, areas;
+    double rim = std::numeric_limits<double>::quiet_NaN();
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (double z = highest - kCapFitStepMm; z >= highest - kCapSpanMm; z -= kCapFitStepMm) {
+      const Section s = slicer_.AtHeight(z, /*join_holes=*/false);
+      const int head = BodyPart(s);
+      if (head < 0 || s.parts[head].has_hole) continue;
+      if (zs.empty()) {
+        rim = z;
+        centre = s.parts[head].centroid;
+      }
+      zs.push_back(z - rim);
+      areas.push_back(s.parts[head].area_mm2);
+    }
+    if (zs.size() < 5) {
+      cap.withheld = "too little closed head below it to extrapolate the top";
+      return cap;
+    }
+    Eigen::MatrixXd a(zs.size(), 3);
+    Eigen::VectorXd b(zs.size());
+    for (size_t i = 0; i < zs.size(); ++i) {
+      a.row(i) << 1.0, zs[i], zs[i] * zs[i];
+      b[i] = areas[i];
+    }
+    const Eigen::Vector3d c = a.colPivHouseholderQr().solve(b);
+    // The first root above the rim (the samples lie below it, at z - rim <= 0).
+    double top = std::numeric_limits<double>::quiet_NaN();
+    if (std::abs(c[2]) < 1e-12) {
+      if (c[1] < 0.0) top = -c[0] / c[1];
+    } else {
+      const double disc = c[1] * c[1] - 4.0 * c[2] * c[0];
+      if (disc >= 0.0) {
+        for (double root :
+             {(-c[1] + std::sqrt(disc)) / (2.0 * c[2]), (-c[1] - std::sqrt(disc)) / (2.0 * c[2])}) {
+          if (root > 0.0 && (std::isnan(top) || root < top)) top = root;
+        }
+      }
+    }
+    if (std::isnan(top) || top > kCapMaxExtrapolationMm) {
+      cap.withheld = "the head's sections below it do not close to a top within " +
+                     Mm(kCapMaxExtrapolationMm) + " of the hole's rim";
+      return cap;
+    }
+    if (rim + top < highest - 1.0) {
+      cap.withheld = "the head's sections below it close to a top below its highest surface";
+      return cap;
+    }
+    cap.z = rim + top;
+    cap.point = Eigen::Vector3d(centre.x(), centre.y(), cap.z);
+    cap.confidence =
+        std::clamp(1.0 - std::max(0.0, top) / (2.0 * kCapMaxExtrapolationMm), 0.5, 0.95);
+    return cap;
   }
 
   struct Extremum {
