@@ -28,6 +28,9 @@ constexpr double kFullConfidenceGapMm = 20.0;  // a neighbour nearer than this l
 // bridges are at most this share of the outline; beyond, the section counts as holed.
 constexpr double kMaxBridgeMm = 40.0;
 constexpr double kMaxBridgedShare = 0.1;
+// A holed section beside a smallest girth whose seen part's hull is longer than it by
+// more than this cannot hide a smaller one.
+constexpr double kHiddenMinimumMarginMm = 5.0;
 // The top of the head across a hole (ExtrapolateHeadTop): the closed sections every step
 // over this span below the highest vertex, and a top at most this far above the highest
 // of them. At 20 mm the quadratic's own error is 0.3 mm for a head whose profile is
@@ -548,9 +551,12 @@ class Analysis {
       result.withheld = "no room for the " + what + " between " + Mm(lo) + " and " + Mm(hi);
       return result;
     }
-    // Sections a hole crosses are left out; an extremum beside one is not trusted.
+    // Sections a hole crosses are left out; an extremum beside one is not trusted, but
+    // for a smallest value: what a hole hides can only add to the hull of what was seen,
+    // so a holed section whose seen hull is already clearly larger hides no smaller one
+    // (`f` grows with the hull: the tape girth).
     std::vector<double> zs, values;
-    std::vector<double> holes;
+    std::vector<std::pair<double, double>> holes;  // height, f of the seen part
     for (double z = lo; z <= hi; z += kStepMm) {
       const TorsoSample t = Torso(z);
       if (!t.found) {
@@ -558,7 +564,7 @@ class Analysis {
         return result;
       }
       zs.push_back(z);
-      if (t.hole) holes.push_back(z);
+      if (t.hole) holes.emplace_back(z, f(t));
       values.push_back(t.hole ? -std::numeric_limits<double>::infinity() : sign * f(t));
     }
     const size_t best = std::max_element(values.begin(), values.end()) - values.begin();
@@ -566,11 +572,14 @@ class Analysis {
       result.withheld = "a hole crosses the torso at every height from " + Mm(lo) + " to " + Mm(hi);
       return result;
     }
-    for (double z : holes) {
-      if (std::abs(z - zs[best]) <= 2.5 * kStepMm) {
-        result.withheld = "a hole crosses the torso at " + Mm(z) + ", beside the " + what;
-        return result;
+    for (const auto& [z, seen] : holes) {
+      if (std::abs(z - zs[best]) > 2.5 * kStepMm) continue;
+      if (sign < 0 && seen > -values[best] + kHiddenMinimumMarginMm) {
+        result.edge_factor = 0.8;  // beside a hole, though not hidden by it
+        continue;
       }
+      result.withheld = "a hole crosses the torso at " + Mm(z) + ", beside the " + what;
+      return result;
     }
     if (best == 0 || best + 1 == values.size()) {
       result.withheld =

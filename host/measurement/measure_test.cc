@@ -241,6 +241,18 @@ TEST(MannequinMeasureTest, AHoleAtTheTopOfTheHeadIsClosedFromTheSectionsBelowIt)
   EXPECT_NE(m->withheld->find("top of the head"), std::string::npos) << *m->withheld;
 }
 
+// What a hole hides can only add to the hull of what was seen: a hole in the shoulder's
+// top beside the neck, whose seen sections are far longer round than the neck, does not
+// withhold the neck's (smallest) girth; a hole in the waist's own outline still withholds
+// the waist (HolesWithholdWhatTheyCross).
+TEST(MannequinMeasureTest, AHoleThatCannotHideASmallerGirthDoesNotWithholdIt) {
+  const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
+  const BodyMeasurements body =
+      MeasureBody(CutOut(ToSurface(subject.mesh), Eigen::Vector3d(85, 0, 1475), 25.0));
+  ExpectMeasured(body, "neck_girth", Truth(subject.metadata.at("truth"), "neck_girth_mm"), 3.0);
+  EXPECT_LT(body.Find("neck_girth")->confidence, 1.0);  // beside a hole all the same
+}
+
 // A small hole is bridged along the section's own curve: the waist across a hole of up to
 // 36 mm comes out at the analytic truth, with a confidence that says part of it was not
 // seen.
