@@ -117,7 +117,7 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
   cmd->add_option("--min-angle", o->min_angle_deg,
                   "Drop points whose ray meets the laser plane flatter than this, degrees "
-                  "(default 8)");
+                  "(default 5)");
   cmd->add_flag("--calibration-mismatch-ok", o->mismatch_ok,
                 "Use the calibration even if the archive was made with another one");
   cmd->add_flag("--readback", o->readback,
