@@ -530,8 +530,7 @@ class Analysis {
     }
     cap.z = rim + top;
     cap.point = Eigen::Vector3d(centre.x(), centre.y(), cap.z);
-    cap.confidence =
-        std::clamp(1.0 - std::max(0.0, top) / (2.0 * kCapMaxExtrapolationMm), 0.5, 0.95);
+    cap.confidence = std::clamp(1.0 - top / (2.0 * kCapMaxExtrapolationMm), 0.5, 0.95);
     return cap;
   }
 

@@ -226,7 +226,8 @@ TEST(MannequinMeasureTest, AHoleAtTheTopOfTheHeadIsClosedFromTheSectionsBelowIt)
     const BodyMeasurements body =
         MeasureBody(CutOut(mesh, Eigen::Vector3d(0, 0, stature), hole_mm));
     const Measurement* m = body.Find("stature");
-    ASSERT_TRUE(m && !m->withheld) << hole_mm << ": " << *m->withheld;
+    ASSERT_NE(m, nullptr);
+    ASSERT_FALSE(m->withheld) << hole_mm << ": " << m->withheld.value_or("");
     ASSERT_TRUE(body.stature_mm);
     EXPECT_NEAR(*body.stature_mm, stature, 0.3) << hole_mm;
     EXPECT_GT(m->confidence, 0.5);
