@@ -14,6 +14,8 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "host/measurement/head_cap.h"
+
 namespace mirrorscan::measurement {
 namespace {
 
@@ -31,17 +33,19 @@ constexpr double kMaxBridgedShare = 0.1;
 // A holed section beside a smallest girth whose seen part's hull is longer than it by
 // more than this cannot hide a smaller one.
 constexpr double kHiddenMinimumMarginMm = 5.0;
-// The top of the head across a hole (ExtrapolateHeadTop): the closed sections every step
-// over this span below the highest vertex, and a top at most this far above the highest
-// of them. At 20 mm the quadratic's own error is 0.3 mm for a head whose profile is
-// |z/c|^2.2 rather than an ellipse's ^2, 0.9 mm for ^2.5 (docs/measurement.md).
+// The top of the head across a hole (ExtrapolateHeadTop): the cap is fitted to the mesh's
+// vertices over this span below its highest vertex, this far from any border at least,
+// and trusted up to this far above the highest of them and this RMS. Within 20 mm the
+// model's own error is at most 0.5 mm for a profile |z/c|^2.5 rather than an ellipse's
+// ^2, and 1.6 mm for a head nodding 10 degrees with its back open (docs/measurement.md).
 constexpr double kCapSpanMm = 50.0;
-constexpr double kCapFitStepMm = 1.0;
-constexpr double kCapMaxExtrapolationMm = 20.0;
+constexpr double kCapBorderClearanceMm = 10.0;
+constexpr double kCapMaxRiseMm = 20.0;
+constexpr double kCapMaxRmsMm = 0.5;
 
-std::string Mm(double x) {
+std::string Mm(double x, int decimals = 0) {
   std::ostringstream out;
-  out.precision(0);
+  out.precision(decimals);
   out << std::fixed << x << " mm";
   return out.str();
 }
@@ -67,16 +71,22 @@ struct Arm {
 class Analysis {
  public:
   Analysis(const Slicer& slicer, BodyMeasurements& out) : slicer_(slicer), out_(out) {
-    for (const Eigen::Vector3d& v : slicer.mesh().vertices) {
-      top_ = std::max(top_, v.z());
-      bottom_ = std::min(bottom_, v.z());
-    }
+    // The surface's vertices: those a triangle uses (a vertex of none is not surface).
+    std::vector<bool> used(slicer.mesh().vertices.size(), false);
     // The mesh's borders: edges of one triangle only.
     std::map<std::pair<int, int>, int> edges;
     for (const Eigen::Vector3i& t : slicer.mesh().triangles) {
       for (int k = 0; k < 3; ++k) {
+        used[t[k]] = true;
         ++edges[std::minmax(t[k], t[(k + 1) % 3])];
       }
+    }
+    for (size_t i = 0; i < used.size(); ++i) {
+      if (!used[i]) continue;
+      const Eigen::Vector3d& v = slicer.mesh().vertices[i];
+      surface_.push_back(v);
+      top_ = std::max(top_, v.z());
+      bottom_ = std::min(bottom_, v.z());
     }
     for (const auto& [edge, count] : edges) {
       if (count == 1) border_.push_back(slicer.mesh().vertices[edge.first]);
@@ -434,7 +444,7 @@ class Analysis {
     m.name = "stature";
     double head_top = -1e18;
     Eigen::Vector3d top_point = Eigen::Vector3d::Zero();
-    for (const Eigen::Vector3d& v : slicer_.mesh().vertices) {
+    for (const Eigen::Vector3d& v : surface_) {
       if ((v.head<2>() - axis_).norm() <= 150.0 && v.z() > head_top) {
         head_top = v.z();
         top_point = v;
@@ -473,64 +483,53 @@ class Analysis {
   };
 
   // Horizontal laser planes graze the top of the head, so a scan often leaves a hole
-  // there. Near a smooth convex top a horizontal section's area grows as
-  // A(h) = a1 h + a2 h^2 + O(h^3) with the depth h below the top (exactly so for an
-  // ellipsoid), so the top is where a quadratic fitted to the areas of the closed sections
-  // below the hole falls to zero. Only a short way up is trusted: the error grows with it.
+  // there, and a cabinet whose mirrors end below the top leaves the back of it open too.
+  // The top is that of a cap fitted to the seen surface below the hole (head_cap.h), a
+  // short way up only: the model's error grows with it (docs/measurement.md).
   CapTop ExtrapolateHeadTop(double highest) const {
     CapTop cap;
-    // Every closed section of the head over the span below its highest vertex; a section
-    // a hole crosses is left out, not the ones below it.
-    std::vector<double> zs, areas;
-    double rim = std::numeric_limits<double>::quiet_NaN();
-    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-    for (double z = highest - kCapFitStepMm; z >= highest - kCapSpanMm; z -= kCapFitStepMm) {
-      const Section s = slicer_.AtHeight(z, /*join_holes=*/false);
-      const int head = BodyPart(s);
-      if (head < 0 || s.parts[head].has_hole) continue;
-      if (zs.empty()) {
-        rim = z;
-        centre = s.parts[head].centroid;
-      }
-      zs.push_back(z - rim);
-      areas.push_back(s.parts[head].area_mm2);
-    }
-    if (zs.size() < 5) {
-      cap.withheld = "too little closed head below it to extrapolate the top";
-      return cap;
-    }
-    Eigen::MatrixXd a(zs.size(), 3);
-    Eigen::VectorXd b(zs.size());
-    for (size_t i = 0; i < zs.size(); ++i) {
-      a.row(i) << 1.0, zs[i], zs[i] * zs[i];
-      b[i] = areas[i];
-    }
-    const Eigen::Vector3d c = a.colPivHouseholderQr().solve(b);
-    // The first root above the rim (the samples lie below it, at z - rim <= 0).
-    double top = std::numeric_limits<double>::quiet_NaN();
-    if (std::abs(c[2]) < 1e-12) {
-      if (c[1] < 0.0) top = -c[0] / c[1];
-    } else {
-      const double disc = c[1] * c[1] - 4.0 * c[2] * c[0];
-      if (disc >= 0.0) {
-        for (double root :
-             {(-c[1] + std::sqrt(disc)) / (2.0 * c[2]), (-c[1] - std::sqrt(disc)) / (2.0 * c[2])}) {
-          if (root > 0.0 && (std::isnan(top) || root < top)) top = root;
-        }
+    // A trimmed mesh's border flares: the points the fit takes keep clear of it.
+    std::vector<Eigen::Vector3d> near_border;
+    for (const Eigen::Vector3d& b : border_) {
+      if (b.z() > highest - kCapSpanMm - kCapBorderClearanceMm &&
+          (b.head<2>() - axis_).norm() <= 150.0 + kCapBorderClearanceMm) {
+        near_border.push_back(b);
       }
     }
-    if (std::isnan(top) || top > kCapMaxExtrapolationMm) {
-      cap.withheld = "the head's sections below it do not close to a top within " +
-                     Mm(kCapMaxExtrapolationMm) + " of the hole's rim";
+    std::vector<Eigen::Vector3d> points;
+    double highest_used = -1e18;
+    for (const Eigen::Vector3d& v : surface_) {
+      if (v.z() <= highest - kCapSpanMm || (v.head<2>() - axis_).norm() > 150.0) continue;
+      const bool clear = std::none_of(near_border.begin(), near_border.end(), [&](const auto& b) {
+        return (b - v).squaredNorm() < kCapBorderClearanceMm * kCapBorderClearanceMm;
+      });
+      if (!clear) continue;
+      points.push_back(v);
+      highest_used = std::max(highest_used, v.z());
+    }
+    const std::optional<HeadCapFit> fit = FitHeadCap(points, lateral_);
+    if (!fit) {
+      cap.withheld = "too little of the head seen below it to fit its cap";
       return cap;
     }
-    if (rim + top < highest - 1.0) {
-      cap.withheld = "the head's sections below it close to a top below its highest surface";
+    if (fit->rms_mm > kCapMaxRmsMm) {
+      cap.withheld =
+          "the head below it is not a smooth cap (the fit's RMS " + Mm(fit->rms_mm, 1) + ")";
       return cap;
     }
-    cap.z = rim + top;
-    cap.point = Eigen::Vector3d(centre.x(), centre.y(), cap.z);
-    cap.confidence = std::clamp(1.0 - top / (2.0 * kCapMaxExtrapolationMm), 0.5, 0.95);
+    const double rise = fit->top.z() - highest_used;
+    if (rise > kCapMaxRiseMm) {
+      cap.withheld = "the head's cap below it rises " + Mm(rise) + " further, more than " +
+                     Mm(kCapMaxRiseMm) + " above what was seen";
+      return cap;
+    }
+    if (fit->top.z() < highest - 1.0) {
+      cap.withheld = "the head's cap fitted below it tops out below its highest surface";
+      return cap;
+    }
+    cap.z = fit->top.z();
+    cap.point = fit->top;
+    cap.confidence = std::clamp(1.0 - std::max(rise, 0.0) / (2.0 * kCapMaxRiseMm), 0.5, 0.95);
     return cap;
   }
 
@@ -804,7 +803,7 @@ class Analysis {
     const double t_junction = (arm.junction_z - mean.z()) / down.z();
     const double t_hand = (arm.hand_z - mean.z()) / down.z();
     double t_wrist = -1e18;
-    for (const Eigen::Vector3d& v : slicer_.mesh().vertices) {
+    for (const Eigen::Vector3d& v : surface_) {
       const double t = (v - mean).dot(down);
       if (t < t_junction || t > t_hand + 3.0 * arm.radius) continue;
       if ((v - mean - t * down).norm() <= 1.5 * arm.radius) t_wrist = std::max(t_wrist, t);
@@ -896,7 +895,8 @@ class Analysis {
 
   const Slicer& slicer_;
   BodyMeasurements& out_;
-  std::vector<Eigen::Vector3d> border_;  // vertices on the mesh's borders (holes)
+  std::vector<Eigen::Vector3d> surface_;  // the vertices of the mesh's triangles
+  std::vector<Eigen::Vector3d> border_;   // vertices on the mesh's borders (holes)
   double top_ = std::numeric_limits<double>::lowest();
   double bottom_ = std::numeric_limits<double>::max();
   std::string not_human_;

@@ -18,8 +18,8 @@ namespace mirrorscan::measurement {
 // Where the surface does not support a value (a hole across a section, an arm merged
 // with the torso, a subject that is not a human body) the value is withheld with the
 // reason, never guessed. One value is extrapolated, where a scan leaves a hole at the top
-// of the head: the stature, from the head's closed sections just below the hole, a short
-// way only and with a lower confidence (docs/measurement.md).
+// of the head: the stature, from the seen cap below the hole (head_cap.h), a short way
+// only and with a lower confidence (docs/measurement.md).
 
 struct Measurement {
   std::string name;                  // e.g. "chest_girth", "arm_length_left"
