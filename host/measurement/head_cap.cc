@@ -78,11 +78,7 @@ std::optional<HeadCapFit> FitHeadCap(const std::vector<Eigen::Vector3d>& points,
   if (!summary.IsSolutionUsable()) return std::nullopt;
 
   HeadCapFit fit;
-  fit.a_mm = std::abs(axes[0]);
-  fit.b_front_mm = std::abs(axes[1]);
-  fit.b_back_mm = std::abs(axes[2]);
-  fit.c_mm = std::abs(axes[3]);
-  fit.top = Eigen::Vector3d(centre[0], centre[1], centre[2] + fit.c_mm);
+  fit.top = Eigen::Vector3d(centre[0], centre[1], centre[2] + axes[3]);
   fit.rms_mm = std::sqrt(2.0 * summary.final_cost / static_cast<double>(points.size()));
   return fit;
 }

@@ -18,7 +18,6 @@ namespace mirrorscan::measurement {
 struct HeadCapFit {
   Eigen::Vector3d top = Eigen::Vector3d::Zero();  // the fitted surface's highest point
   double rms_mm = 0.0;                            // of the points' distances from it
-  double a_mm = 0.0, b_front_mm = 0.0, b_back_mm = 0.0, c_mm = 0.0;
 };
 
 // `points` on the cap (world, mm, z up); `lateral` the body's left-right direction in x-y

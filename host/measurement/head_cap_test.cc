@@ -32,7 +32,9 @@ std::vector<Eigen::Vector3d> Surface(const Head& h, double from, double dz, doub
   const Eigen::Matrix3d turn = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
                                 Eigen::AngleAxisd(-pitch, Eigen::Vector3d::UnitX()))
                                    .toRotationMatrix();
-  for (double z = h.c - from; z <= h.c; z = std::min(z + dz, z < h.c ? h.c : 2 * h.c)) {
+  const int rings = static_cast<int>(std::ceil(from / dz));
+  for (int i = 0; i <= rings; ++i) {
+    const double z = std::min(h.c - from + i * dz, h.c);  // the last ring at the top
     const double scale = std::sqrt(std::max(0.0, 1.0 - std::pow(std::abs(z / h.c), h.profile)));
     const int n = std::max(8, static_cast<int>(2.0 * std::numbers::pi * 100.0 * scale / step));
     for (int k = 0; k < n; ++k) {

@@ -519,8 +519,8 @@ class Analysis {
     }
     const double rise = fit->top.z() - highest_used;
     if (rise > kCapMaxRiseMm) {
-      cap.withheld = "the head's cap below it rises " + Mm(rise) + " further, more than " +
-                     Mm(kCapMaxRiseMm) + " above what was seen";
+      cap.withheld = "the cap seen below it tops out " + Mm(rise) +
+                     " above the highest surface fitted, further than " + Mm(kCapMaxRiseMm);
       return cap;
     }
     if (fit->top.z() < highest - 1.0) {
