@@ -526,118 +526,109 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
   peak->hypotheses = static_cast<uint8_t>(out->size() - peak->first_hypothesis);
 }
 
-// The voxels of the bounding cylinder's box near a point that was decided alone: the
-// subject's volume as the scan itself carves it. A wrong laser's hypothesis lies on the ray
-// behind the surface the ray really met, where nothing was seen.
-class Occupancy {
+// The bounding cylinder's box cut into cubes `voxel_mm` on a side: the index of a point's
+// voxel, and of its own and its 26 neighbours' (the grids below share it).
+class VoxelBox {
  public:
-  explicit Occupancy(const BoundingCylinder& c) {
+  VoxelBox(const BoundingCylinder& c, double voxel_mm) : voxel_mm_(voxel_mm) {
     origin_ =
         Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
-    size_ = ((Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm)) / kVoxelMm)
+    size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / voxel_mm)
                 .array()
                 .ceil()
                 .cast<int>() +
             1;
-    cells_.assign(static_cast<size_t>(size_.x()) * size_.y() * size_.z(), 0);
   }
-  // Marks the point's voxel and its 26 neighbours.
-  void Add(const Eigen::Vector3d& point) {
+  size_t Voxels() const { return static_cast<size_t>(size_.x()) * size_.y() * size_.z(); }
+  std::optional<size_t> Index(const Eigen::Vector3d& point) const {
+    const Eigen::Vector3i c = Cell(point);
+    if (!Inside(c)) return std::nullopt;
+    return Flat(c);
+  }
+  template <typename F>
+  void ForNeighbourhood(const Eigen::Vector3d& point, F&& visit) const {
     const Eigen::Vector3i at = Cell(point);
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const Eigen::Vector3i c = at + Eigen::Vector3i(dx, dy, dz);
-          if ((c.array() >= 0).all() && (c.array() < size_.array()).all()) cells_[Index(c)] = 1;
+          if (Inside(c)) visit(Flat(c));
         }
-  }
-  bool Contains(const Eigen::Vector3d& point) const {
-    const Eigen::Vector3i c = Cell(point);
-    return (c.array() >= 0).all() && (c.array() < size_.array()).all() && cells_[Index(c)];
   }
 
  private:
-  static constexpr double kVoxelMm = 10.0;
   Eigen::Vector3i Cell(const Eigen::Vector3d& point) const {
-    return ((point - origin_) / kVoxelMm).array().floor().cast<int>();
+    return ((point - origin_) / voxel_mm_).array().floor().cast<int>();
   }
-  size_t Index(const Eigen::Vector3i& c) const {
+  bool Inside(const Eigen::Vector3i& c) const {
+    return (c.array() >= 0).all() && (c.array() < size_.array()).all();
+  }
+  size_t Flat(const Eigen::Vector3i& c) const {
     return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
   }
+  double voxel_mm_;
   Eigen::Vector3d origin_;
   Eigen::Vector3i size_;
+};
+
+// The voxels (10 mm) near a point that was decided alone: the subject's volume as the scan
+// itself carves it. A wrong laser's hypothesis lies on the ray behind the surface the ray
+// really met, where nothing was seen.
+class Occupancy {
+ public:
+  explicit Occupancy(const BoundingCylinder& c) : box_(c, 10.0), cells_(box_.Voxels(), 0) {}
+  // Marks the point's voxel and its 26 neighbours.
+  void Add(const Eigen::Vector3d& point) {
+    box_.ForNeighbourhood(point, [&](size_t i) { cells_[i] = 1; });
+  }
+  bool Contains(const Eigen::Vector3d& point) const {
+    const auto i = box_.Index(point);
+    return i && cells_[*i];
+  }
+
+ private:
+  VoxelBox box_;
   std::vector<uint8_t> cells_;
 };
 
-// Per voxel of the bounding cylinder's box, the (view, laser) keys of the peaks decided
-// without the vote near it. A mirror stripe that no rule decided can be joined to a real
-// surface in front of the mirror by a chain of its phantom hypotheses (its direct ray
-// meeting another laser's plane in the air beside an arm); the vote would carry that
-// surface's key along the whole chain, so in a mirror's region it gives the direct view
-// only to points near peaks decided so.
+// Per voxel (20 mm), the (view, laser) keys of the peaks decided without the vote near it.
+// A mirror stripe that no rule decided can be joined to a real surface in front of the
+// mirror by a chain of its phantom hypotheses (its direct ray meeting another laser's plane
+// in the air beside an arm); the vote would carry that surface's key along the whole chain,
+// so in a mirror's region it gives the direct view only to points near peaks decided so.
 class KeyOccupancy {
  public:
-  explicit KeyOccupancy(const BoundingCylinder& c) {
-    origin_ =
-        Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
-    size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / kVoxelMm)
-                .array()
-                .ceil()
-                .cast<int>() +
-            1;
-    cells_.assign(static_cast<size_t>(size_.x()) * size_.y() * size_.z(), 0);
-  }
+  explicit KeyOccupancy(const BoundingCylinder& c) : box_(c, 20.0), cells_(box_.Voxels(), 0) {}
   // Marks the key in the point's voxel and its 26 neighbours.
   void Add(const Eigen::Vector3d& point, int key) {
-    const Eigen::Vector3i at = Cell(point);
     const auto bit = static_cast<uint16_t>(1u << key);
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const Eigen::Vector3i c = at + Eigen::Vector3i(dx, dy, dz);
-          if ((c.array() >= 0).all() && (c.array() < size_.array()).all()) cells_[Index(c)] |= bit;
-        }
+    box_.ForNeighbourhood(point, [&](size_t i) { cells_[i] |= bit; });
   }
   bool Contains(const Eigen::Vector3d& point, int key) const {
-    const Eigen::Vector3i c = Cell(point);
-    return (c.array() >= 0).all() && (c.array() < size_.array()).all() &&
-           (cells_[Index(c)] >> key & 1u);
+    const auto i = box_.Index(point);
+    return i && (cells_[*i] >> key & 1u);
   }
 
  private:
-  static constexpr double kVoxelMm = 20.0;
   static_assert(kKeys <= 16, "one bit per key");
-  Eigen::Vector3i Cell(const Eigen::Vector3d& point) const {
-    return ((point - origin_) / kVoxelMm).array().floor().cast<int>();
-  }
-  size_t Index(const Eigen::Vector3i& c) const {
-    return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
-  }
-  Eigen::Vector3d origin_;
-  Eigen::Vector3i size_;
+  VoxelBox box_;
   std::vector<uint16_t> cells_;
 };
 
-// Per camera and voxel of the bounding cylinder's box: the best ray–plane angle (its sine)
-// of that camera's points there.
+// Per camera and voxel (10 mm): the best ray–plane angle (its sine) of that camera's
+// points there.
 class AngleGrid {
  public:
-  AngleGrid(const BoundingCylinder& c, size_t cameras) {
-    origin_ =
-        Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
-    size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / kVoxelMm)
-                .array()
-                .ceil()
-                .cast<int>() +
-            1;
-    cells_.assign(cameras, std::vector<float>(static_cast<size_t>(size_.prod()), 0.0f));
-  }
+  AngleGrid(const BoundingCylinder& c, size_t cameras)
+      : box_(c, 10.0), cells_(cameras, std::vector<float>(box_.Voxels(), 0.0f)) {}
   void Add(size_t camera, const Eigen::Vector3d& point, float sin_angle) {
-    if (const auto i = Index(point)) cells_[camera][*i] = std::max(cells_[camera][*i], sin_angle);
+    if (const auto i = box_.Index(point)) {
+      cells_[camera][*i] = std::max(cells_[camera][*i], sin_angle);
+    }
   }
   // The best sine another camera has at the point.
   float BestOther(size_t camera, const Eigen::Vector3d& point) const {
-    const auto i = Index(point);
+    const auto i = box_.Index(point);
     float best = 0;
     if (!i) return best;
     for (size_t c = 0; c < cells_.size(); ++c)
@@ -646,14 +637,7 @@ class AngleGrid {
   }
 
  private:
-  static constexpr double kVoxelMm = 10.0;
-  std::optional<size_t> Index(const Eigen::Vector3d& point) const {
-    const Eigen::Vector3i c = ((point - origin_) / kVoxelMm).array().floor().cast<int>();
-    if ((c.array() < 0).any() || (c.array() >= size_.array()).any()) return std::nullopt;
-    return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
-  }
-  Eigen::Vector3d origin_;
-  Eigen::Vector3i size_;
+  VoxelBox box_;
   std::vector<std::vector<float>> cells_;
 };
 
