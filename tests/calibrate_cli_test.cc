@@ -19,12 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 
 using Result = test_support::CommandResult;
-
-// mirrorscan with `arguments`; stdout and stderr together in .out.
-Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
-                                        arguments);
-}
+using test_support::RunMirrorscan;
 
 nlohmann::json ReadJson(const fs::path& file) {
   std::ifstream in(file);

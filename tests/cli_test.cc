@@ -22,21 +22,13 @@ namespace {
 namespace fs = std::filesystem;
 
 using Result = test_support::CommandResult;
-
-// mirrorscan with `arguments`; stdout and stderr together in .out.
-Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
-                                        arguments);
-}
-
-std::string Scene(const std::string& name) {
-  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
-}
+using test_support::RunMirrorscan;
+using test_support::VirtualScene;
 
 TEST(CliTest, SimScanWritesACompletePeakArchive) {
   const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_scan");
   const Result r =
-      RunMirrorscan("sim scan --scene " + Scene("cylinder") + " --out " + dir.string() +
+      RunMirrorscan("sim scan --scene " + VirtualScene("cylinder") + " --out " + dir.string() +
                     " --frames 4 --truth --peaks " + (dir / "scan.mscan").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const ScanArchive archive = ReadScanFile(dir / "scan.mscan");
@@ -76,8 +68,8 @@ TEST(CliTest, SimScanWritesACompletePeakArchive) {
 
 TEST(CliTest, PeaksCsvFindsTheStripesOfTheTruthCsv) {
   const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_peaks");
-  ASSERT_EQ(RunMirrorscan("sim render --scene " + Scene("mannequin") + " --out " + dir.string() +
-                          " --camera lower")
+  ASSERT_EQ(RunMirrorscan("sim render --scene " + VirtualScene("mannequin") + " --out " +
+                          dir.string() + " --camera lower")
                 .exit_code,
             0);
   const fs::path image = dir / "lower_frame150.png";
@@ -111,8 +103,8 @@ TEST(CliTest, PeaksCsvFindsTheStripesOfTheTruthCsv) {
 
 TEST(CliTest, CalibrateWritesVerifiesAndRefuses) {
   const fs::path dir = test_support::FreshTempDir("mirrorscan_cli_test_calibrate");
-  Result r = RunMirrorscan("sim render --no-lasers --scene " + Scene("calibration") + " --out " +
-                           dir.string());
+  Result r = RunMirrorscan("sim render --no-lasers --scene " + VirtualScene("calibration") +
+                           " --out " + dir.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const std::string board = std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/board.json";
   std::string upper, lower;

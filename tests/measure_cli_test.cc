@@ -16,15 +16,8 @@ namespace {
 
 namespace fs = std::filesystem;
 using Result = test_support::CommandResult;
-
-Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
-                                        arguments);
-}
-
-std::string Scene(const std::string& name) {
-  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
-}
+using test_support::RunMirrorscan;
+using test_support::VirtualScene;
 
 nlohmann::json ReadJson(const fs::path& path) {
   return nlohmann::json::parse(test_support::ReadFile(path));
@@ -40,8 +33,8 @@ const nlohmann::json& Find(const nlohmann::json& measurements, const std::string
 TEST(MeasureCliTest, MannequinAgainstTheSimsTruth) {
   const fs::path dir = test_support::FreshTempDir("mirrorscan_measure_cli");
   const fs::path mesh = dir / "mannequin.ply", truth_file = dir / "truth.json";
-  Result r = RunMirrorscan("sim subject --scene " + Scene("mannequin") + " --out " + mesh.string() +
-                           " --truth " + truth_file.string());
+  Result r = RunMirrorscan("sim subject --scene " + VirtualScene("mannequin") + " --out " +
+                           mesh.string() + " --truth " + truth_file.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const nlohmann::json truth = ReadJson(truth_file).at("truth");
   r = test_support::RunCommand(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan measure " +
@@ -75,7 +68,7 @@ TEST(MeasureCliTest, MannequinAgainstTheSimsTruth) {
   EXPECT_EQ(preview.rows, 1000);
 
   // The same surface as STL (every triangle's corners stored apart) measures the same.
-  ASSERT_EQ(RunMirrorscan("sim subject --scene " + Scene("mannequin") + " --out " +
+  ASSERT_EQ(RunMirrorscan("sim subject --scene " + VirtualScene("mannequin") + " --out " +
                           (dir / "mannequin.stl").string())
                 .exit_code,
             0);
@@ -90,7 +83,7 @@ TEST(MeasureCliTest, MannequinAgainstTheSimsTruth) {
 
 TEST(MeasureCliTest, CylinderIsWithheldWithTheReason) {
   const fs::path dir = test_support::FreshTempDir("mirrorscan_measure_cli_cylinder");
-  ASSERT_EQ(RunMirrorscan("sim subject --scene " + Scene("cylinder") + " --out " +
+  ASSERT_EQ(RunMirrorscan("sim subject --scene " + VirtualScene("cylinder") + " --out " +
                           (dir / "c.ply").string())
                 .exit_code,
             0);

@@ -18,20 +18,13 @@ namespace {
 
 namespace fs = std::filesystem;
 using Result = test_support::CommandResult;
-
-Result RunMirrorscan(const std::string& arguments) {
-  return test_support::RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " +
-                                        arguments);
-}
-
-std::string SceneFile(const std::string& name) {
-  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
-}
+using test_support::RunMirrorscan;
+using test_support::VirtualScene;
 
 // A whole sweep of `scene` (changes merged into the mannequin scene) reduced to peaks in
 // dir/scan.mscan, with the scene's true calibration in dir/calibration.json.
 void SimulateScan(const fs::path& dir, const nlohmann::json& changes) {
-  nlohmann::json scene = JsonReader::ParseFile(SceneFile("mannequin"));
+  nlohmann::json scene = JsonReader::ParseFile(VirtualScene("mannequin"));
   scene.merge_patch(changes);
   std::ofstream(dir / "scene.json") << scene.dump();
   const Result r =
@@ -70,9 +63,8 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   for (const char* name :
        {"points.ply", "mesh.ply", "mesh.obj", "summary.json", "measurements.json",
-        "preview-measurements.png", "preview-front.png",
-        "preview-back.png", "preview-left.png", "preview-right.png", "preview-cloud-views.png",
-        "preview-cloud-cameras.png"}) {
+        "preview-measurements.png", "preview-front.png", "preview-back.png", "preview-left.png",
+        "preview-right.png", "preview-cloud-views.png", "preview-cloud-cameras.png"}) {
     EXPECT_TRUE(fs::exists(out / name)) << name;
   }
   EXPECT_FALSE(fs::exists(out / "mesh.stl"));
@@ -101,7 +93,7 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
   // sim's, not the measuring code's): each value within the bounds (girths 3 mm,
   // heights and lengths 2 mm) or withheld with a reason; never a number where the scan
   // has none. Waist and hip are seen whole on this scan and must be given.
-  const Result truth_run = RunMirrorscan("sim subject --scene " + SceneFile("mannequin") +
+  const Result truth_run = RunMirrorscan("sim subject --scene " + VirtualScene("mannequin") +
                                          " --out " + (*dir_ / "subject.ply").string() +
                                          " --truth " + (*dir_ / "truth.json").string());
   ASSERT_EQ(truth_run.exit_code, 0) << truth_run.out;
@@ -123,8 +115,7 @@ TEST_F(ProcessCli, MannequinScanGivesMeshPreviewsAndSummary) {
     }
     ASSERT_TRUE(truth.contains(key + "_mm")) << name;
     const double bound = name.find("girth") != std::string::npos ? 3.0 : 2.0;
-    EXPECT_NEAR(m.at("value_mm").get<double>(), truth.at(key + "_mm").get<double>(), bound)
-        << name;
+    EXPECT_NEAR(m.at("value_mm").get<double>(), truth.at(key + "_mm").get<double>(), bound) << name;
   }
   EXPECT_TRUE(given.count("waist_girth") && given.count("hip_girth"));
 }

@@ -53,6 +53,14 @@ CommandResult RunCommandMerged(const std::string& command) {
   return RunCommand(command + " 2>&1", "/dev/null");
 }
 
+CommandResult RunMirrorscan(const std::string& arguments) {
+  return RunCommandMerged(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan " + arguments);
+}
+
+std::string VirtualScene(const std::string& name) {
+  return std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" + name + ".json";
+}
+
 CommandResult RunCommand(const std::string& command, const std::filesystem::path& err_file) {
   const std::string line = "(" + command + ") 2>" + err_file.string();
   FILE* pipe = ::popen(line.c_str(), "r");

@@ -34,6 +34,10 @@ struct CommandResult {
 CommandResult RunCommand(const std::string& command, const std::filesystem::path& err_file);
 // Runs `command` with its stdout and stderr together in .out.
 CommandResult RunCommandMerged(const std::string& command);
+// The build's own `mirrorscan` with `arguments`, stdout and stderr together in .out.
+CommandResult RunMirrorscan(const std::string& arguments);
+// The virtual cabinet's scene `name`: boards/virtual/scenes/<name>.json in the source tree.
+std::string VirtualScene(const std::string& name);
 
 struct ChildOptions {
   std::vector<std::pair<std::string, std::string>> env;  // set in the child
