@@ -120,6 +120,25 @@ long RssKb(pid_t pid) {
   return -1;
 }
 
+// SIGSTOP is delivered asynchronously: a thread running on another core goes on until the
+// kernel interrupts it. True once every thread of `pid` is in the stopped state ('T').
+bool AllThreadsStopped(pid_t pid) {
+  const fs::path tasks = "/proc/" + std::to_string(pid) + "/task";
+  std::error_code error;
+  bool any = false;
+  for (const auto& task : fs::directory_iterator(tasks, error)) {
+    std::ifstream stat(task.path() / "stat");
+    std::string line;
+    if (!std::getline(stat, line)) return false;
+    // The state follows the command name, which is in parentheses and may hold spaces.
+    const size_t close = line.rfind(')');
+    if (close == std::string::npos || close + 2 >= line.size()) return false;
+    if (line[close + 2] != 'T') return false;
+    any = true;
+  }
+  return any && !error;
+}
+
 class DeviceHostileTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -397,15 +416,18 @@ TEST_F(DeviceHostileTest, AFrozenProcessDarkensTheLasersWithinTheInterlockPulse)
   // While it sweeps the loop keeps the pulse running: the longest gap between triggers
   // over 1 s (sampled every ~1 ms) stays below the pulse.
   int64_t max_gap_ns = 0;
-  int64_t previous = state->last_trigger_ns.load();
   for (const auto end = Clock::now() + seconds(1); Clock::now() < end;) {
     const int64_t now = Clock::now().time_since_epoch().count();
     max_gap_ns = std::max(max_gap_ns, now - state->last_trigger_ns.load());
-    previous = state->last_trigger_ns.load();
     std::this_thread::sleep_for(std::chrono::microseconds(500));
   }
-  (void)previous;
+  ASSERT_FALSE(AllThreadsStopped(daemon->pid()));  // sweeping, so running
   daemon->Signal(SIGSTOP);
+  const auto stop_deadline = Clock::now() + seconds(5);
+  while (!AllThreadsStopped(daemon->pid()) && Clock::now() < stop_deadline) {
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  ASSERT_TRUE(AllThreadsStopped(daemon->pid()));
   const int64_t stopped_ns = Clock::now().time_since_epoch().count();
   std::this_thread::sleep_for(milliseconds(1000));
   const int64_t last = state->last_trigger_ns.load();
