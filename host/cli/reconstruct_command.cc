@@ -23,6 +23,7 @@ struct ReconstructCliOptions {
   bool readback = false;
   bool no_smooth = false;
   bool no_outliers = false;
+  bool no_surface_check = false;
   bool drop_stripe_ends = false;
   double prefer_camera = -1;
   bool icp = false;
@@ -59,6 +60,7 @@ void Run(const ReconstructCliOptions& o) {
   options.laser_height_from_panels = !o.readback;
   options.smooth_3x3 = !o.no_smooth;
   options.remove_outliers = !o.no_outliers;
+  options.surface_check = !o.no_surface_check;
   options.drop_stripe_ends = o.drop_stripe_ends;
   if (o.prefer_camera >= 0) options.prefer_camera_ratio = o.prefer_camera;
   options.icp = o.icp;
@@ -124,6 +126,9 @@ void AddReconstructCommand(CLI::App& app) {
                 "Laser heights from the slide readback, not from the panel lines");
   cmd->add_flag("--no-smooth", o->no_smooth, "No 3x3 averaging in (column, frame)");
   cmd->add_flag("--no-outliers", o->no_outliers, "Keep statistical outliers");
+  cmd->add_flag("--no-surface-check", o->no_surface_check,
+                "Keep weak points (stripe ends, grazing rays) that lie off the surface the "
+                "confident points around them show");
   cmd->add_flag("--drop-stripe-ends", o->drop_stripe_ends,
                 "Drop the last 2 columns of every stripe (they only get a low confidence)");
   cmd->add_option("--prefer-camera", o->prefer_camera,

@@ -10,6 +10,7 @@
 #include <optional>
 #include <tuple>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "common/config/json_reader.h"
@@ -1339,6 +1340,67 @@ double Median(std::vector<double> values) {
   return *mid;
 }
 
+// ReconstructOptions::surface_check. The confident points are indexed in a grid of cells as
+// large as the radius (counting sort), so a point's neighbours are in its 27 cells.
+size_t DropOffSurface(const ReconstructOptions& options, std::vector<CloudPoint>* points) {
+  const double radius = options.surface_check_radius_mm;
+  const float threshold = static_cast<float>(options.surface_check_confidence);
+  const VoxelBox box(options.cylinder, radius);
+  std::vector<uint32_t> start(box.Voxels() + 1, 0);
+  std::vector<uint32_t> confident;
+  for (uint32_t i = 0; i < points->size(); ++i) {
+    const CloudPoint& cp = (*points)[i];
+    if (cp.confidence < threshold) continue;
+    if (const auto cell = box.Index(cp.point_in_world.cast<double>())) {
+      ++start[*cell + 1];
+      confident.push_back(i);
+    }
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<uint32_t> by_cell(confident.size());
+  {
+    std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+    for (const uint32_t i : confident)
+      by_cell[fill[*box.Index((*points)[i].point_in_world.cast<double>())]++] = i;
+  }
+  constexpr int kMinNeighbours = 6;
+  const double radius2 = radius * radius;
+  std::vector<bool> drop(points->size(), false);
+  for (size_t i = 0; i < points->size(); ++i) {
+    const CloudPoint& cp = (*points)[i];
+    if (cp.confidence >= threshold) continue;
+    const Eigen::Vector3d at = cp.point_in_world.cast<double>();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+    int n = 0;
+    box.ForNeighbourhood(at, [&](size_t cell) {
+      for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
+        const Eigen::Vector3d q = (*points)[by_cell[k]].point_in_world.cast<double>() - at;
+        if (q.squaredNorm() > radius2) continue;
+        sum += q;
+        outer += q * q.transpose();
+        ++n;
+      }
+    });
+    if (n < kMinNeighbours) {
+      drop[i] = cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
+      continue;
+    }
+    const Eigen::Vector3d mean = sum / n;
+    const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+    const double rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
+    const double off = std::abs(solver.eigenvectors().col(0).dot(-mean));
+    drop[i] = off > options.surface_check_max_mm && off > 3.0 * rms;
+  }
+  size_t kept = 0;
+  for (size_t i = 0; i < points->size(); ++i)
+    if (!drop[i]) (*points)[kept++] = (*points)[i];
+  const size_t dropped = points->size() - kept;
+  points->resize(kept);
+  return dropped;
+}
+
 }  // namespace
 
 const char* PointViewName(PointView view) {
@@ -1718,14 +1780,20 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
       ++summary.dropped_low_confidence;
       continue;
     }
+    cloud.points.push_back(cp);
+  }
+  stopwatch.Lap("normals");
+  if (options.surface_check) {
+    summary.dropped_off_surface = DropOffSurface(options, &cloud.points);
+    stopwatch.Lap("surface check");
+  }
+  for (const CloudPoint& cp : cloud.points) {
     ++summary.points_per_camera[cp.camera];
     ++summary.points_per_view[static_cast<int>(cp.view)];
     ++summary.points_per_laser[cp.laser];
     if (cp.view == PointView::kLeftRight || cp.view == PointView::kRightLeft)
       ++summary.double_bounce;
-    cloud.points.push_back(cp);
   }
-  stopwatch.Lap("normals");
   if (options.icp) {
     progress("icp", 0.0);
     summary.icp = RefineViews(&cloud);
@@ -1783,6 +1851,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"other_camera", s.dropped_other_camera},
             {"stripe_end", s.dropped_stripe_end},
             {"low_confidence", s.dropped_low_confidence},
+            {"off_surface", s.dropped_off_surface},
             {"outlier", s.dropped_outlier}}},
           {"double_bounce", s.double_bounce},
           {"laser_height",
@@ -1823,10 +1892,11 @@ std::string SummaryText(const ReconstructSummary& s) {
   text += Format(
       "  dropped: panel %zu, no ray %zu, outside volume %zu, floor %zu, ambiguous %zu, conflict "
       "%zu, unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, stripe "
-      "end %zu, outlier %zu, low confidence %zu\n",
+      "end %zu, outlier %zu, low confidence %zu, off surface %zu\n",
       s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_floor, s.dropped_ambiguous,
       s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through, s.dropped_flat_angle,
-      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier, s.dropped_low_confidence);
+      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier, s.dropped_low_confidence,
+      s.dropped_off_surface);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

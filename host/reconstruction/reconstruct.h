@@ -152,6 +152,16 @@ struct ReconstructOptions {
   // (docs/reconstruction.md: 0.15 leaves no mannequin point beyond 5 mm of its surface but
   // drops 4 % of its points and 7 % of the cuboid's). 0, the default, keeps every point.
   double min_confidence = 0.0;
+  // Surface support: a point whose confidence is below surface_check_confidence (a stripe's
+  // end, a grazing ray: where blur mixes the light of two surfaces and the peak lands in
+  // the air between them) is dropped when it lies further than surface_check_max_mm from
+  // the plane of the confident points within surface_check_radius_mm, and by more than 3
+  // times that plane's RMS (at an edge or a fold the plane says nothing); or when only the
+  // column count or the label vote decided it and no confident point is near.
+  bool surface_check = true;
+  double surface_check_confidence = 0.15;
+  double surface_check_radius_mm = 12.0;
+  double surface_check_max_mm = 3.0;
   // Optional ICP refinement of mirror views and the lower camera against the rest
   // (reported; off by default).
   bool icp = false;
@@ -215,7 +225,8 @@ struct ReconstructSummary {
   size_t dropped_stripe_end = 0;
   size_t dropped_outlier = 0;
   size_t dropped_low_confidence = 0;
-  size_t double_bounce = 0;  // triangulated through both mirrors
+  size_t dropped_off_surface = 0;  // a weak point the confident ones around it do not carry
+  size_t double_bounce = 0;        // triangulated through both mirrors
   size_t points = 0;
   std::vector<size_t> points_per_camera;  // by FrameRecord::camera
   std::vector<size_t> points_per_view;    // by PointView

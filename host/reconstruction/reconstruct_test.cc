@@ -354,8 +354,21 @@ TEST(Reconstruct, FiltersAreSwitchable) {
   const Reconstruction sure = Reconstruct(sweep.archive, sweep.calibration, confident);
   EXPECT_EQ(filtered.summary.dropped_low_confidence, 0u);
   EXPECT_GT(sure.summary.dropped_low_confidence, 0u);
-  EXPECT_EQ(sure.summary.points + sure.summary.dropped_low_confidence, filtered.summary.points);
+  // Every point left is at least 0.15, so the surface check (which judges weaker ones only)
+  // dropped none of them.
+  EXPECT_EQ(sure.summary.dropped_off_surface, 0u);
+  EXPECT_EQ(sure.summary.points + sure.summary.dropped_low_confidence,
+            filtered.summary.points + filtered.summary.dropped_off_surface);
   for (const CloudPoint& p : sure.cloud.points) ASSERT_GE(p.confidence, 0.15f);
+  ReconstructOptions unchecked;
+  unchecked.surface_check = false;
+  const Reconstruction all = Reconstruct(sweep.archive, sweep.calibration, unchecked);
+  EXPECT_EQ(all.summary.dropped_off_surface, 0u);
+  EXPECT_EQ(all.summary.points, filtered.summary.points + filtered.summary.dropped_off_surface);
+  // What it drops are points off the box, not its faces' points.
+  EXPECT_LE(ScoreAgainstTruth(sweep, filtered.cloud).max_mm,
+            ScoreAgainstTruth(sweep, all.cloud).max_mm);
+  EXPECT_LT(filtered.summary.dropped_off_surface, filtered.summary.points / 200);
 }
 
 TEST(Reconstruct, CalibrationOfAnotherCabinetIsRefused) {
