@@ -9,6 +9,8 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
+#include "common/parallel/parallel_for.h"
+
 namespace mirrorscan {
 
 namespace {
@@ -33,42 +35,56 @@ double Median(std::vector<double> values) {
 }
 
 // Every peak whose camera ray meets a panel before any mirror.
+// Frames in chunks on `threads`, each chunk's points in frame order, joined in chunk order.
 std::vector<PanelPoint> CollectPanelPoints(const std::vector<FrameRecord>& frames,
-                                           const LaserCabinet& cabinet) {
-  std::vector<PanelPoint> points;
+                                           const LaserCabinet& cabinet, int threads) {
   for (size_t f = 0; f < frames.size(); ++f) {
     const FrameRecord& frame = frames[f];
-    if (!frame.lasers_on) continue;
-    if (frame.camera >= cabinet.cameras.size()) {
+    if (frame.lasers_on && frame.camera >= cabinet.cameras.size()) {
       throw LaserHeightError(Format("frame %zu (sequence %u): camera %d is not in the calibration",
                                     f, frame.sequence, frame.camera));
     }
-    const Camera& camera = cabinet.cameras[frame.camera];
-    for (const Peak& peak : frame.peaks) {
-      const auto ray = camera.RayThroughPixel({peak.u, peak.v});
-      if (!ray) continue;
-      double nearest = std::numeric_limits<double>::infinity();
-      int panel = -1;
-      for (size_t p = 0; p < cabinet.panels.size(); ++p) {
-        if (const auto t = cabinet.panels[p].Intersect(*ray); t && *t < nearest) {
-          nearest = *t;
-          panel = static_cast<int>(p);
-        }
-      }
-      if (panel < 0) continue;
-      const bool behind_mirror = std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
-                                             [&](const PlanarRectangle& m) {
-                                               const auto t = m.Intersect(*ray);
-                                               return t && *t < nearest;
-                                             });
-      if (behind_mirror) continue;
-      // The panel plane n·x + d = 0 moved δ further back is n·x + d + δ = 0: the ray meets
-      // it at t − δ/(n·r).
-      const Eigen::Vector3d per_offset =
-          -ray->direction / cabinet.panels[panel].plane.normal.dot(ray->direction);
-      points.push_back({f, panel, peak.u, peak.v, ray->At(nearest), per_offset, -1, 0.0});
-    }
   }
+  std::vector<CameraRays> cameras;
+  for (const Camera& camera : cabinet.cameras) cameras.push_back(camera.RaysThroughPixels());
+  std::vector<std::vector<PanelPoint>> chunks(ChunkCount(frames.size(), threads));
+  ForEachChunk(frames.size(), threads, [&](size_t c, size_t begin, size_t end) {
+    std::vector<PanelPoint>& points = chunks[c];
+    for (size_t f = begin; f < end; ++f) {
+      const FrameRecord& frame = frames[f];
+      if (!frame.lasers_on) continue;
+      const CameraRays& camera = cameras[frame.camera];
+      for (const Peak& peak : frame.peaks) {
+        const auto ray = camera.Through({peak.u, peak.v});
+        if (!ray) continue;
+        double nearest = std::numeric_limits<double>::infinity();
+        int panel = -1;
+        for (size_t p = 0; p < cabinet.panels.size(); ++p) {
+          if (const auto t = cabinet.panels[p].Intersect(*ray); t && *t < nearest) {
+            nearest = *t;
+            panel = static_cast<int>(p);
+          }
+        }
+        if (panel < 0) continue;
+        const bool behind_mirror = std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
+                                               [&](const PlanarRectangle& m) {
+                                                 const auto t = m.Intersect(*ray);
+                                                 return t && *t < nearest;
+                                               });
+        if (behind_mirror) continue;
+        // The panel plane n·x + d = 0 moved δ further back is n·x + d + δ = 0: the ray meets
+        // it at t − δ/(n·r).
+        const Eigen::Vector3d per_offset =
+            -ray->direction / cabinet.panels[panel].plane.normal.dot(ray->direction);
+        points.push_back({f, panel, peak.u, peak.v, ray->At(nearest), per_offset, -1, 0.0});
+      }
+    }
+  });
+  std::vector<PanelPoint> points;
+  size_t total = 0;
+  for (const auto& chunk : chunks) total += chunk.size();
+  points.reserve(total);
+  for (const auto& chunk : chunks) points.insert(points.end(), chunk.begin(), chunk.end());
   return points;
 }
 
@@ -443,7 +459,8 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
   LaserHeightResult result;
   LaserFit& fit = result.fit;
   fit.time_origin_ns = options.time_origin_ns.value_or(frames.front().timestamp_ns);
-  result.points = CollectPanelPoints(frames, cabinet);
+  const int threads = ResolveThreads(options.threads);
+  result.points = CollectPanelPoints(frames, cabinet, threads);
   std::vector<PanelPoint>& points = result.points;
   result.candidates = points.size();
   if (points.size() < kMinPanelPoints) {
@@ -459,18 +476,22 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
   // lowest line any panel shows, which is taken to be laser 0.
   std::vector<PanelLines> panel_lines(cabinet.panels.size());
   double lowest = std::numeric_limits<double>::infinity();
+  std::vector<std::vector<Eigen::Vector2d>> time_height(cabinet.panels.size());
+  for (const PanelPoint& point : points)
+    time_height[point.panel].emplace_back(time_of(point), point.point_in_world.z());
+  // Panels on the threads, one at a time each.
+  ForEachChunk(cabinet.panels.size(), threads, [&](size_t, size_t begin, size_t end) {
+    for (size_t p = begin; p < end; ++p)
+      if (time_height[p].size() >= kMinPanelPoints)
+        panel_lines[p] = FindPanelLines(time_height[p], cabinet, 5.0);
+  });
   for (size_t p = 0; p < cabinet.panels.size(); ++p) {
-    std::vector<Eigen::Vector2d> time_height;
-    for (const PanelPoint& point : points)
-      if (point.panel == static_cast<int>(p))
-        time_height.emplace_back(time_of(point), point.point_in_world.z());
-    if (time_height.size() < kMinPanelPoints) {
-      if (!time_height.empty())
+    if (time_height[p].size() < kMinPanelPoints) {
+      if (!time_height[p].empty())
         result.warnings.push_back(Format("%s: only %zu points, not used",
-                                         cabinet.panels[p].name.c_str(), time_height.size()));
+                                         cabinet.panels[p].name.c_str(), time_height[p].size()));
       continue;
     }
-    panel_lines[p] = FindPanelLines(time_height, cabinet, 5.0);
     if (!panel_lines[p].intercepts.empty())
       lowest = std::min(lowest, panel_lines[p].intercepts.front().first);
   }

@@ -93,6 +93,9 @@ struct LaserHeightOptions {
   // is less certain than max_panel_offset_std_mm keeps the cabinet's.
   bool fit_panel_offsets = true;
   double max_panel_offset_std_mm = 0.1;
+  // Threads for the per-peak and per-panel work (0: every core); the result is the same
+  // for any number.
+  int threads = 1;
 };
 
 // A peak whose camera ray meets a panel directly.

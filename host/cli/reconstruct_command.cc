@@ -31,6 +31,7 @@ struct ReconstructCliOptions {
   bool no_free_space = false;
   double core_radius_mm = -1;
   double stereo_max_mm = -1;
+  int threads = 0;
   double radius_mm = -1, bottom_mm = -1e9, top_mm = -1e9;
   double min_angle_deg = -1;
   double min_confidence = -1;
@@ -68,6 +69,7 @@ void Run(const ReconstructCliOptions& o) {
   options.free_space_check = !o.no_free_space;
   if (o.min_confidence >= 0) options.min_confidence = o.min_confidence;
   if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
+  options.threads = o.threads;
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
     if (o.json) return;
@@ -144,6 +146,9 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_flag("--no-free-space-check", o->no_free_space,
                 "Keep points that other lasers at their pixel, or other views, see through");
   cmd->add_flag("--icp", o->icp, "Refine the mirror views against the centre view (ICP)");
+  cmd->add_option("--threads", o->threads,
+                  "Worker threads (default 0: every core; the cloud is the same for any number)")
+      ->check(CLI::Range(0, 256));
   cmd->add_flag("--json", o->json, "Print the summary as JSON (no progress)");
   cmd->callback([o] { Run(*o); });
 }

@@ -6,14 +6,19 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
+#include <new>
 #include <numeric>
 #include <optional>
+#include <stdexcept>
 #include <tuple>
+#include <type_traits>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "common/config/json_reader.h"
+#include "common/parallel/parallel_for.h"
 #include "host/calibration/laser_height.h"
 #include "host/reconstruction/icp.h"
 
@@ -53,6 +58,39 @@ struct Hypothesis {
   bool panel = false;
   // A surface that is not the subject: it decides a peak, and the point is dropped.
   bool Background() const { return floor || panel; }
+};
+
+// Every peak's hypotheses in one allocation. Each chunk of frames writes its own stretch,
+// sized for the most its peaks can have: no chunk waits for another, nothing is copied
+// after, and the stretches' unused tails are never written, so that memory is never
+// touched (its first touch, not the writing, is what costs on this machine). Only a peak's
+// own [first_hypothesis, first_hypothesis + hypotheses) is ever read.
+class Hypotheses {
+ public:
+  explicit Hypotheses(size_t capacity)
+      : data_(std::allocator<Hypothesis>().allocate(capacity)), capacity_(capacity) {}
+  ~Hypotheses() { std::allocator<Hypothesis>().deallocate(data_, capacity_); }
+  Hypotheses(const Hypotheses&) = delete;
+  Hypotheses& operator=(const Hypotheses&) = delete;
+  Hypothesis& operator[](size_t i) { return data_[i]; }
+  const Hypothesis& operator[](size_t i) const { return data_[i]; }
+
+  // Appends into [next, end) of the store.
+  struct Writer {
+    Hypotheses* store;
+    uint32_t next, end;
+    uint32_t size() const { return next; }
+    void push_back(const Hypothesis& h) {
+      if (next >= end) throw std::logic_error("more hypotheses than a peak can have");
+      new (store->data_ + next) Hypothesis(h);
+      ++next;
+    }
+  };
+
+ private:
+  static_assert(std::is_trivially_destructible_v<Hypothesis>);
+  Hypothesis* data_;
+  size_t capacity_;
 };
 
 enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote, kStereo };
@@ -239,7 +277,7 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
                            const std::vector<const CalibrationCamera*>& cameras,
                            const ReconstructOptions& options, std::vector<PeakState>* peaks,
                            const std::vector<uint32_t>& frame_first,
-                           const std::vector<std::optional<Ray3d>>& rays,
+                           const std::vector<std::optional<Ray3d>>& rays, int threads,
                            ReconstructSummary* summary) {
   LaserPlanes planes;
   planes.count = LaserCountOf(archive, calibration);
@@ -278,35 +316,38 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
       lo.readback_tolerance_mm = options.readback_tolerance_mm;
       // The calibration measured the panels; one scan's sweep is no better at it.
       lo.fit_panel_offsets = false;
+      lo.threads = threads;
       if (calibration.lasers) lo.normal = calibration.lasers->normal;
       // The fit undistorts every peak it is given; each peak's ray is already known here,
       // so it gets only the peaks whose ray meets a panel before any mirror (the same test
       // it applies), not the subject's.
       std::vector<FrameRecord> candidates(archive.frames.size());
-      for (size_t f = 0; f < archive.frames.size(); ++f) {
-        const FrameRecord& frame = archive.frames[f];
-        FrameRecord& c = candidates[f];
-        c.camera = frame.camera;
-        c.lasers_on = frame.lasers_on;
-        c.sequence = frame.sequence;
-        c.timestamp_ns = frame.timestamp_ns;
-        c.slide_position_mm = frame.slide_position_mm;
-        for (uint32_t i = frame_first[f]; i < frame_first[f + 1]; ++i) {
-          if (!rays[i]) continue;
-          double nearest = std::numeric_limits<double>::infinity();
-          for (const PlanarRectangle& panel : cabinet.panels)
-            if (const auto t = panel.Intersect(*rays[i]); t && *t < nearest) nearest = *t;
-          if (!std::isfinite(nearest)) continue;
-          if (std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
-                          [&](const PlanarRectangle& m) {
-                            const auto t = m.Intersect(*rays[i]);
-                            return t && *t < nearest;
-                          }))
-            continue;
-          const PeakState& p = (*peaks)[i];
-          c.peaks.push_back(Peak{p.u, p.v, 0.0f, 0.0f, p.score});  // the fit reads u and v
+      ParallelFor(archive.frames.size(), threads, [&](size_t begin, size_t end) {
+        for (size_t f = begin; f < end; ++f) {
+          const FrameRecord& frame = archive.frames[f];
+          FrameRecord& c = candidates[f];
+          c.camera = frame.camera;
+          c.lasers_on = frame.lasers_on;
+          c.sequence = frame.sequence;
+          c.timestamp_ns = frame.timestamp_ns;
+          c.slide_position_mm = frame.slide_position_mm;
+          for (uint32_t i = frame_first[f]; i < frame_first[f + 1]; ++i) {
+            if (!rays[i]) continue;
+            double nearest = std::numeric_limits<double>::infinity();
+            for (const PlanarRectangle& panel : cabinet.panels)
+              if (const auto t = panel.Intersect(*rays[i]); t && *t < nearest) nearest = *t;
+            if (!std::isfinite(nearest)) continue;
+            if (std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
+                            [&](const PlanarRectangle& m) {
+                              const auto t = m.Intersect(*rays[i]);
+                              return t && *t < nearest;
+                            }))
+              continue;
+            const PeakState& p = (*peaks)[i];
+            c.peaks.push_back(Peak{p.u, p.v, 0.0f, 0.0f, p.score});  // the fit reads u and v
+          }
         }
-      }
+      });
       const LaserHeightResult result = EstimateLaserHeights(candidates, cabinet, lo);
       const LaserFit& fit = result.fit;
       for (size_t f = 0; f < archive.frames.size(); ++f) {
@@ -434,7 +475,7 @@ constexpr double kPanelLineMm = 10.0;
 void Hypothesize(const Geometry& g, const FrameRecord& frame,
                  const std::array<Plane, kMaxLasers>& planes, int laser_count,
                  const BoundingCylinder& cylinder, double mirror_clearance_mm,
-                 const std::optional<Ray3d>& ray, PeakState* peak, std::vector<Hypothesis>* out) {
+                 const std::optional<Ray3d>& ray, PeakState* peak, Hypotheses::Writer* out) {
   peak->first_hypothesis = static_cast<uint32_t>(out->size());
   if (!ray) {
     peak->no_ray = true;
@@ -528,22 +569,30 @@ void Hypothesize(const Geometry& g, const FrameRecord& frame,
 }
 
 // The bounding cylinder's box cut into cubes `voxel_mm` on a side: the index of a point's
-// voxel, and of its own and its 26 neighbours' (the grids below share it).
+// voxel, and of its own and its 26 neighbours' (the grids below share it). With a margin,
+// the grid has that many more voxels on every side, which only IndexInMargin reaches.
 class VoxelBox {
  public:
-  VoxelBox(const BoundingCylinder& c, double voxel_mm) : voxel_mm_(voxel_mm) {
+  VoxelBox(const BoundingCylinder& c, double voxel_mm, int margin = 0)
+      : voxel_mm_(voxel_mm), margin_(margin) {
     origin_ =
         Eigen::Vector3d(c.center_mm.x() - c.radius_mm, c.center_mm.y() - c.radius_mm, c.bottom_mm);
     size_ = (Eigen::Vector3d(2 * c.radius_mm, 2 * c.radius_mm, c.top_mm - c.bottom_mm) / voxel_mm)
                 .array()
                 .ceil()
                 .cast<int>() +
-            1;
+            1 + 2 * margin;
   }
   size_t Voxels() const { return static_cast<size_t>(size_.x()) * size_.y() * size_.z(); }
+  const Eigen::Vector3i& Size() const { return size_; }
   std::optional<size_t> Index(const Eigen::Vector3d& point) const {
     const Eigen::Vector3i c = Cell(point);
     if (!Inside(c)) return std::nullopt;
+    return Flat(c);
+  }
+  std::optional<size_t> IndexInMargin(const Eigen::Vector3d& point) const {
+    const Eigen::Vector3i c = Cell(point);
+    if (!(c.array() >= 0).all() || !(c.array() < size_.array()).all()) return std::nullopt;
     return Flat(c);
   }
   template <typename F>
@@ -558,63 +607,83 @@ class VoxelBox {
   }
 
  private:
+  // The margin added as an integer: the same voxel boundaries as without it.
   Eigen::Vector3i Cell(const Eigen::Vector3d& point) const {
-    return ((point - origin_) / voxel_mm_).array().floor().cast<int>();
+    return ((point - origin_) / voxel_mm_).array().floor().cast<int>() + margin_;
   }
   bool Inside(const Eigen::Vector3i& c) const {
-    return (c.array() >= 0).all() && (c.array() < size_.array()).all();
+    return (c.array() >= margin_).all() && (c.array() < size_.array() - margin_).all();
   }
   size_t Flat(const Eigen::Vector3i& c) const {
     return (static_cast<size_t>(c.z()) * size_.y() + c.y()) * size_.x() + c.x();
   }
   double voxel_mm_;
+  int margin_;
   Eigen::Vector3d origin_;
   Eigen::Vector3i size_;
+};
+
+// Per voxel, the OR of the bits added at points in it or in any of its 26 neighbours. Each
+// point marks its own voxel only (a point up to one voxel outside the box marks the margin,
+// from where it still reaches in); Spread() then ORs every voxel with its two neighbours
+// along x, y and z in turn, which is the 3×3×3 neighbourhood. Marking all 27 voxels per
+// point instead cost ten times the writes, scattered.
+template <typename Bits>
+class NeighbourhoodBits {
+ public:
+  NeighbourhoodBits(const BoundingCylinder& c, double voxel_mm)
+      : box_(c, voxel_mm, 1), cells_(box_.Voxels(), 0) {}
+  void Add(const Eigen::Vector3d& point, Bits bits) {
+    if (const auto i = box_.IndexInMargin(point)) cells_[*i] |= bits;
+  }
+  void Spread() {
+    const Eigen::Vector3i& size = box_.Size();
+    const size_t sx = size.x(), sy = size.y(), sz = size.z();
+    // Axis by axis: blocks of n rows of `stride` voxels each, every voxel ORed with the
+    // voxels a row before and after it (as they were before this pass).
+    auto pass = [&](size_t blocks, size_t n, size_t stride) {
+      std::vector<Bits> before(stride);
+      for (size_t b = 0; b < blocks; ++b) {
+        std::fill(before.begin(), before.end(), Bits{0});
+        Bits* block = cells_.data() + b * n * stride;
+        for (size_t k = 0; k < n; ++k) {
+          Bits* row = block + k * stride;
+          for (size_t j = 0; j < stride; ++j) {
+            const Bits own = row[j];
+            const Bits after = k + 1 < n ? row[j + stride] : Bits{0};
+            row[j] = static_cast<Bits>(before[j] | own | after);
+            before[j] = own;
+          }
+        }
+      }
+    };
+    pass(sy * sz, sx, 1);
+    pass(sz, sy, sx);
+    pass(1, sz, sx * sy);
+  }
+  // After Spread(); 0 outside the box.
+  Bits At(const Eigen::Vector3d& point) const {
+    const auto i = box_.Index(point);
+    return i ? cells_[*i] : Bits{0};
+  }
+
+ private:
+  VoxelBox box_;
+  std::vector<Bits> cells_;
 };
 
 // The voxels (10 mm) near a point that was decided alone: the subject's volume as the scan
 // itself carves it. A wrong laser's hypothesis lies on the ray behind the surface the ray
 // really met, where nothing was seen.
-class Occupancy {
- public:
-  explicit Occupancy(const BoundingCylinder& c) : box_(c, 10.0), cells_(box_.Voxels(), 0) {}
-  // Marks the point's voxel and its 26 neighbours.
-  void Add(const Eigen::Vector3d& point) {
-    box_.ForNeighbourhood(point, [&](size_t i) { cells_[i] = 1; });
-  }
-  bool Contains(const Eigen::Vector3d& point) const {
-    const auto i = box_.Index(point);
-    return i && cells_[*i];
-  }
-
- private:
-  VoxelBox box_;
-  std::vector<uint8_t> cells_;
-};
+constexpr double kOccupancyVoxelMm = 10.0;
 
 // Per voxel (20 mm), the (view, laser) keys of the peaks decided without the vote near it.
 // A mirror stripe that no rule decided can be joined to a real surface in front of the
 // mirror by a chain of its phantom hypotheses (its direct ray meeting another laser's plane
 // in the air beside an arm); the vote would carry that surface's key along the whole chain,
 // so in a mirror's region it gives the direct view only to points near peaks decided so.
-class KeyOccupancy {
- public:
-  explicit KeyOccupancy(const BoundingCylinder& c) : box_(c, 20.0), cells_(box_.Voxels(), 0) {}
-  // Marks the key in the point's voxel and its 26 neighbours.
-  void Add(const Eigen::Vector3d& point, int key) {
-    const auto bit = static_cast<uint16_t>(1u << key);
-    box_.ForNeighbourhood(point, [&](size_t i) { cells_[i] |= bit; });
-  }
-  bool Contains(const Eigen::Vector3d& point, int key) const {
-    const auto i = box_.Index(point);
-    return i && (cells_[*i] >> key & 1u);
-  }
-
- private:
-  static_assert(kKeys <= 16, "one bit per key");
-  VoxelBox box_;
-  std::vector<uint16_t> cells_;
-};
+constexpr double kKeyOccupancyVoxelMm = 20.0;
+static_assert(kKeys <= 16, "one bit per key in a uint16_t");
 
 // Per camera and voxel (10 mm): the best ray–plane angle (its sine) of that camera's
 // points there.
@@ -644,83 +713,89 @@ class AngleGrid {
 
 // A peak decided on its own: its one hypothesis; else the one another camera confirms; else
 // the one inside the cylinder's core among those confirmed (or among all, none confirmed).
-void DecideAlone(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& hyp,
-                 const BoundingCylinder& cylinder) {
+void DecideAlone(std::vector<PeakState>* peaks, const Hypotheses& hyp,
+                 const BoundingCylinder& cylinder, int threads) {
   const auto is_direct = [](const Hypothesis& x) {
     return x.key / kMaxLasers == static_cast<int>(PointView::kCenter);
   };
-  for (PeakState& p : *peaks) {
-    if (p.hypotheses == 0) continue;
-    const Hypothesis* first = &hyp[p.first_hypothesis];
-    if (p.hypotheses == 1) {
-      p.chosen = 0;
+  ParallelFor(peaks->size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      PeakState& p = (*peaks)[i];
+      if (p.hypotheses == 0) continue;
+      const Hypothesis* first = &hyp[p.first_hypothesis];
+      if (p.hypotheses == 1) {
+        p.chosen = 0;
+        p.rule = Rule::kCylinder;
+        continue;
+      }
+      int confirmed = 0, last_confirmed = -1;
+      for (int h = 0; h < p.hypotheses; ++h) {
+        if (first[h].confirmed) {
+          ++confirmed;
+          last_confirmed = h;
+        }
+      }
+      if (confirmed == 1) {
+        p.chosen = static_cast<int16_t>(last_confirmed);
+        p.rule = Rule::kStereo;
+        continue;
+      }
+      // The floor and the panels are surfaces too: such a hypothesis leaves the core no single
+      // answer.
+      int in_core = 0, last_in_core = -1;
+      for (int h = 0; h < p.hypotheses; ++h) {
+        if ((confirmed == 0 || first[h].confirmed) &&
+            (first[h].Background() || cylinder.CoreContains(first[h].point))) {
+          ++in_core;
+          last_in_core = h;
+        }
+      }
+      if (in_core != 1) continue;
+      // The direct ray in a mirror's region meets the other lasers' planes in the air beside
+      // whatever stands in front of the mirror, often inside the core: no proof while the
+      // mirror's view has a hypothesis further out (a hand seen in the mirror).
+      // And the other way round: the mirror's view meets a laser's plane inside the core, in
+      // the air in front of the legs, while the truth is a hand in front of the mirror, outside
+      // the core.
+      if (p.region != 0 && std::any_of(first, first + p.hypotheses, [&](const Hypothesis& x) {
+            return !x.Background() && is_direct(x) != is_direct(first[last_in_core]);
+          }))
+        continue;
+      p.chosen = static_cast<int16_t>(last_in_core);
       p.rule = Rule::kCylinder;
-      continue;
     }
-    int confirmed = 0, last_confirmed = -1;
-    for (int h = 0; h < p.hypotheses; ++h) {
-      if (first[h].confirmed) {
-        ++confirmed;
-        last_confirmed = h;
-      }
-    }
-    if (confirmed == 1) {
-      p.chosen = static_cast<int16_t>(last_confirmed);
-      p.rule = Rule::kStereo;
-      continue;
-    }
-    // The floor and the panels are surfaces too: such a hypothesis leaves the core no single
-    // answer.
-    int in_core = 0, last_in_core = -1;
-    for (int h = 0; h < p.hypotheses; ++h) {
-      if ((confirmed == 0 || first[h].confirmed) &&
-          (first[h].Background() || cylinder.CoreContains(first[h].point))) {
-        ++in_core;
-        last_in_core = h;
-      }
-    }
-    if (in_core != 1) continue;
-    // The direct ray in a mirror's region meets the other lasers' planes in the air beside
-    // whatever stands in front of the mirror, often inside the core: no proof while the
-    // mirror's view has a hypothesis further out (a hand seen in the mirror).
-    // And the other way round: the mirror's view meets a laser's plane inside the core, in
-    // the air in front of the legs, while the truth is a hand in front of the mirror, outside
-    // the core.
-    if (p.region != 0 && std::any_of(first, first + p.hypotheses, [&](const Hypothesis& x) {
-          return !x.Background() && is_direct(x) != is_direct(first[last_in_core]);
-        }))
-      continue;
-    p.chosen = static_cast<int16_t>(last_in_core);
-    p.rule = Rule::kCylinder;
-  }
+  });
 }
 
 // Peaks the cylinder left ambiguous with exactly one hypothesis in the carved volume.
-void DecideByVolume(std::vector<PeakState>* peaks, const std::vector<Hypothesis>& hyp,
-                    const BoundingCylinder& cylinder) {
-  Occupancy occupied(cylinder);
+void DecideByVolume(std::vector<PeakState>* peaks, const Hypotheses& hyp,
+                    const BoundingCylinder& cylinder, int threads) {
+  NeighbourhoodBits<uint8_t> occupied(cylinder, kOccupancyVoxelMm);
   for (const PeakState& p : *peaks)
     if (p.rule == Rule::kCylinder || p.rule == Rule::kStereo)
-      occupied.Add(hyp[p.first_hypothesis + p.chosen].point);
-  for (PeakState& p : *peaks) {
-    if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
-    int found = -1, count = 0;
-    for (int h = 0; h < p.hypotheses; ++h) {
-      if (occupied.Contains(hyp[p.first_hypothesis + h].point)) {
-        found = h;
-        ++count;
+      occupied.Add(hyp[p.first_hypothesis + p.chosen].point, 1);
+  occupied.Spread();
+  ParallelFor(peaks->size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      PeakState& p = (*peaks)[i];
+      if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
+      int found = -1, count = 0;
+      for (int h = 0; h < p.hypotheses; ++h) {
+        if (occupied.At(hyp[p.first_hypothesis + h].point)) {
+          found = h;
+          ++count;
+        }
+      }
+      if (count == 1) {
+        p.chosen = static_cast<int16_t>(found);
+        p.rule = Rule::kVolume;
       }
     }
-    if (count == 1) {
-      p.chosen = static_cast<int16_t>(found);
-      p.rule = Rule::kVolume;
-    }
-  }
+  });
 }
 
 // A common hypothesis of two peaks whose points are within max_mm.
-bool Consistent(const std::vector<Hypothesis>& hyp, const PeakState& a, const PeakState& b,
-                double max_mm) {
+bool Consistent(const Hypotheses& hyp, const PeakState& a, const PeakState& b, double max_mm) {
   const double max2 = max_mm * max_mm;
   for (int i = 0; i < a.hypotheses; ++i) {
     const Hypothesis& ha = hyp[a.first_hypothesis + i];
@@ -732,7 +807,7 @@ bool Consistent(const std::vector<Hypothesis>& hyp, const PeakState& a, const Pe
   return false;
 }
 
-int FindHypothesis(const std::vector<Hypothesis>& hyp, const PeakState& p, int key) {
+int FindHypothesis(const Hypotheses& hyp, const PeakState& p, int key) {
   for (int i = 0; i < p.hypotheses; ++i) {
     if (hyp[p.first_hypothesis + i].key == key) return i;
   }
@@ -758,7 +833,7 @@ struct PeakTable {
   }
 };
 
-PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_frame) {
+PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_frame, int threads) {
   PeakTable table;
   const size_t n = archive.frames.size();
   table.frame_first.assign(n + 1, 0);
@@ -771,28 +846,34 @@ PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_fr
   table.peaks.resize(total);
   for (size_t f = 0; f < n; ++f) {
     if (!use_frame[f]) continue;
-    PeakState* out = table.peaks.data() + table.frame_first[f];
-    for (const Peak& p : archive.frames[f].peaks) {
-      out->frame = static_cast<uint32_t>(f);
-      out->u = p.u;
-      out->v = p.v;
-      out->score = p.score;
-      ++out;
-    }
-    std::sort(
-        table.peaks.begin() + table.frame_first[f], table.peaks.begin() + table.frame_first[f + 1],
-        [](const PeakState& a, const PeakState& b) { return a.u != b.u ? a.u < b.u : a.v < b.v; });
+    for (const Peak& p : archive.frames[f].peaks) table.columns = std::max(table.columns, p.u + 1);
   }
-  for (const PeakState& p : table.peaks) table.columns = std::max(table.columns, p.u + 1);
   const size_t stride = table.columns + 1;
   table.column_first.resize(n * stride);
-  for (size_t f = 0; f < n; ++f) {
-    uint32_t i = table.frame_first[f];
-    for (int u = 0; u <= table.columns; ++u) {
-      while (i < table.frame_first[f + 1] && table.peaks[i].u < u) ++i;
-      table.column_first[f * stride + u] = i;
+  ParallelFor(n, threads, [&](size_t begin, size_t end) {
+    for (size_t f = begin; f < end; ++f) {
+      const auto first = table.peaks.begin() + table.frame_first[f];
+      const auto last = table.peaks.begin() + table.frame_first[f + 1];
+      if (use_frame[f]) {
+        auto out = first;
+        for (const Peak& p : archive.frames[f].peaks) {
+          out->frame = static_cast<uint32_t>(f);
+          out->u = p.u;
+          out->v = p.v;
+          out->score = p.score;
+          ++out;
+        }
+        std::sort(first, last, [](const PeakState& a, const PeakState& b) {
+          return a.u != b.u ? a.u < b.u : a.v < b.v;
+        });
+      }
+      uint32_t i = table.frame_first[f];
+      for (int u = 0; u <= table.columns; ++u) {
+        while (i < table.frame_first[f + 1] && table.peaks[i].u < u) ++i;
+        table.column_first[f * stride + u] = i;
+      }
     }
-  }
+  });
   // Frames of one camera in time order.
   table.next_frame.assign(n, -1);
   std::vector<uint32_t> order;
@@ -814,7 +895,7 @@ PeakTable BuildTable(const ScanArchive& archive, const std::vector<bool>& use_fr
 // the height), so another camera's hypotheses near a point are a few binary searches away.
 class HypothesisIndex {
  public:
-  HypothesisIndex(const PeakTable& table, const std::vector<Hypothesis>& hyp) {
+  HypothesisIndex(const PeakTable& table, const Hypotheses& hyp) {
     const size_t frames = table.frame_first.size() - 1;
     first_.assign(frames * kMaxLasers + 1, 0);
     for (size_t f = 0; f < frames; ++f)
@@ -841,8 +922,8 @@ class HypothesisIndex {
   }
 
   // Whether the frame has a hypothesis of this laser within radius of the point.
-  bool AnyNear(const std::vector<Hypothesis>& hyp, size_t frame, int laser,
-               const Eigen::Vector3d& point, double radius) const {
+  bool AnyNear(const Hypotheses& hyp, size_t frame, int laser, const Eigen::Vector3d& point,
+               double radius) const {
     const auto begin = entries_.begin() + first_[frame * kMaxLasers + laser];
     const auto end = entries_.begin() + first_[frame * kMaxLasers + laser + 1];
     if (begin == end) return false;
@@ -883,7 +964,7 @@ class HypothesisIndex {
 // ones coincide only where their curves in a laser plane happen to cross.
 void ConfirmByStereo(const ScanArchive& archive, const PeakTable& table,
                      const std::vector<std::array<Plane, kMaxLasers>>& planes, double max_mm,
-                     std::vector<Hypothesis>* hyp) {
+                     int threads, Hypotheses* hyp) {
   const size_t frames = table.frame_first.size() - 1;
   // Per camera, its frames in time order and its frame period.
   size_t cameras = 0;
@@ -907,50 +988,53 @@ void ConfirmByStereo(const ScanArchive& archive, const PeakTable& table,
     }
   }
   const HypothesisIndex index(table, *hyp);
-  std::vector<uint32_t> partners;
-  for (size_t f = 0; f < frames; ++f) {
-    if (table.frame_first[f + 1] == table.frame_first[f]) continue;
-    const FrameRecord& frame = archive.frames[f];
-    partners.clear();
-    for (size_t c = 0; c < cameras; ++c) {
-      if (c == frame.camera || by_time[c].empty()) continue;
-      const auto& list = by_time[c];
-      const auto it = std::lower_bound(list.begin(), list.end(),
-                                       std::make_pair(frame.timestamp_ns, uint32_t{0}));
-      // The frames either side within three quarters of a period.
-      for (auto near : {it, it == list.begin() ? list.end() : it - 1}) {
-        if (near == list.end()) continue;
-        if (4 * std::abs(near->first - frame.timestamp_ns) <= 3 * period[c])
-          partners.push_back(near->second);
+  // Each frame marks only its own hypotheses and reads the others' points, which stay.
+  ParallelFor(frames, threads, [&](size_t frames_begin, size_t frames_end) {
+    std::vector<uint32_t> partners;
+    for (size_t f = frames_begin; f < frames_end; ++f) {
+      if (table.frame_first[f + 1] == table.frame_first[f]) continue;
+      const FrameRecord& frame = archive.frames[f];
+      partners.clear();
+      for (size_t c = 0; c < cameras; ++c) {
+        if (c == frame.camera || by_time[c].empty()) continue;
+        const auto& list = by_time[c];
+        const auto it = std::lower_bound(list.begin(), list.end(),
+                                         std::make_pair(frame.timestamp_ns, uint32_t{0}));
+        // The frames either side within three quarters of a period.
+        for (auto near : {it, it == list.begin() ? list.end() : it - 1}) {
+          if (near == list.end()) continue;
+          if (4 * std::abs(near->first - frame.timestamp_ns) <= 3 * period[c])
+            partners.push_back(near->second);
+        }
       }
-    }
-    if (partners.empty()) continue;
-    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
-      const PeakState& p = table.peaks[i];
-      if (p.hypotheses < 2) continue;
-      for (int h = 0; h < p.hypotheses; ++h) {
-        Hypothesis& x = (*hyp)[p.first_hypothesis + h];
-        const int laser = x.key % kMaxLasers;
-        for (uint32_t g : partners) {
-          const Plane& plane = planes[g][laser];
-          if (std::abs(plane.normal.z()) < 0.5) continue;
-          // Where the other frame's plane is above this point: the stripe has moved by that.
-          const double z =
-              -(plane.normal.x() * x.point.x() + plane.normal.y() * x.point.y() + plane.offset) /
-              plane.normal.z();
-          const Eigen::Vector3d moved(x.point.x(), x.point.y(), z);
-          if (index.AnyNear(*hyp, g, laser, moved, max_mm + std::abs(z - x.point.z()))) {
-            x.confirmed = true;
-            break;
+      if (partners.empty()) continue;
+      for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+        const PeakState& p = table.peaks[i];
+        if (p.hypotheses < 2) continue;
+        for (int h = 0; h < p.hypotheses; ++h) {
+          Hypothesis& x = (*hyp)[p.first_hypothesis + h];
+          const int laser = x.key % kMaxLasers;
+          for (uint32_t g : partners) {
+            const Plane& plane = planes[g][laser];
+            if (std::abs(plane.normal.z()) < 0.5) continue;
+            // Where the other frame's plane is above this point: the stripe has moved by that.
+            const double z =
+                -(plane.normal.x() * x.point.x() + plane.normal.y() * x.point.y() + plane.offset) /
+                plane.normal.z();
+            const Eigen::Vector3d moved(x.point.x(), x.point.y(), z);
+            if (index.AnyNear(*hyp, g, laser, moved, max_mm + std::abs(z - x.point.z()))) {
+              x.confirmed = true;
+              break;
+            }
           }
         }
       }
     }
-  }
+  });
 }
 
 // Joins peaks that are neighbours in (column, frame) and agree on some hypothesis.
-void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
+void LinkNeighbours(const PeakTable& table, const Hypotheses& hyp,
                     const ReconstructOptions& options, UnionFind* labels) {
   const size_t frames = table.frame_first.size() - 1;
   // Two neighbours decided with different keys are two surfaces that touch in the image (a
@@ -1006,58 +1090,64 @@ void LinkNeighbours(const PeakTable& table, const std::vector<Hypothesis>& hyp,
 // centre region only fixed them but left the cuboid's stripes that run on into a mirror's
 // region without the support the vote needs there (CuboidThroughTheTrueCalibration...: 5,700
 // fewer points), so it counts in every region.
-void DecideByColumnCount(PeakTable* table, const std::vector<Hypothesis>& hyp, int laser_count) {
+void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_count, int threads) {
   if (laser_count < 2) return;
   const size_t frames = table->frame_first.size() - 1;
-  for (size_t f = 0; f < frames; ++f) {
-    const uint32_t begin = table->frame_first[f], end = table->frame_first[f + 1];
-    for (uint32_t i = begin; i < end;) {
-      uint32_t run_end = i;
-      while (run_end < end && table->peaks[run_end].u == table->peaks[i].u) ++run_end;
-      for (uint8_t region = 0; region < 3; ++region) {
-        std::array<uint32_t, kMaxLasers> members{};
-        int n = 0;
-        for (uint32_t j = i; j < run_end; ++j) {
-          const PeakState& p = table->peaks[j];
-          if (p.region != region || p.hypotheses == 0 || p.panel) continue;
-          if (n == laser_count) {
-            n = laser_count + 1;
-            break;
+  // A frame decides only its own peaks.
+  ParallelFor(frames, threads, [&](size_t frames_begin, size_t frames_end) {
+    for (size_t f = frames_begin; f < frames_end; ++f) {
+      const uint32_t begin = table->frame_first[f], end = table->frame_first[f + 1];
+      for (uint32_t i = begin; i < end;) {
+        uint32_t run_end = i;
+        while (run_end < end && table->peaks[run_end].u == table->peaks[i].u) ++run_end;
+        for (uint8_t region = 0; region < 3; ++region) {
+          std::array<uint32_t, kMaxLasers> members{};
+          int n = 0;
+          for (uint32_t j = i; j < run_end; ++j) {
+            const PeakState& p = table->peaks[j];
+            if (p.region != region || p.hypotheses == 0 || p.panel) continue;
+            if (n == laser_count) {
+              n = laser_count + 1;
+              break;
+            }
+            members[n++] = j;
           }
-          members[n++] = j;
-        }
-        if (n != laser_count) continue;
-        // Rows ascend within a column: the first is the highest laser.
-        for (int r = 0; r < n; ++r) {
-          PeakState& p = table->peaks[members[r]];
-          if (p.rule != Rule::kNone) continue;
-          const int laser = laser_count - 1 - r;
-          int found = -1, count = 0;
-          for (int h = 0; h < p.hypotheses; ++h) {
-            if (hyp[p.first_hypothesis + h].key % kMaxLasers == laser) {
-              found = h;
-              ++count;
+          if (n != laser_count) continue;
+          // Rows ascend within a column: the first is the highest laser.
+          for (int r = 0; r < n; ++r) {
+            PeakState& p = table->peaks[members[r]];
+            if (p.rule != Rule::kNone) continue;
+            const int laser = laser_count - 1 - r;
+            int found = -1, count = 0;
+            for (int h = 0; h < p.hypotheses; ++h) {
+              if (hyp[p.first_hypothesis + h].key % kMaxLasers == laser) {
+                found = h;
+                ++count;
+              }
+            }
+            if (count == 1) {
+              p.chosen = static_cast<int16_t>(found);
+              p.rule = Rule::kColumnCount;
             }
           }
-          if (count == 1) {
-            p.chosen = static_cast<int16_t>(found);
-            p.rule = Rule::kColumnCount;
-          }
         }
+        i = run_end;
       }
-      i = run_end;
     }
-  }
+  });
 }
 
 // Majority vote per label over the peaks decided alone; the winner decides the rest.
-void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, UnionFind* labels,
+void DecideByLabelVote(PeakTable* table, const Hypotheses& hyp, UnionFind* labels,
                        const BoundingCylinder& cylinder, ReconstructSummary* summary) {
   const size_t n = table->peaks.size();
-  KeyOccupancy decided(cylinder);
-  for (const PeakState& p : table->peaks)
-    if (p.chosen >= 0)
-      decided.Add(hyp[p.first_hypothesis + p.chosen].point, hyp[p.first_hypothesis + p.chosen].key);
+  NeighbourhoodBits<uint16_t> decided(cylinder, kKeyOccupancyVoxelMm);
+  for (const PeakState& p : table->peaks) {
+    if (p.chosen < 0) continue;
+    const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+    decided.Add(h.point, static_cast<uint16_t>(1u << h.key));
+  }
+  decided.Spread();
   std::vector<int32_t> label_of_root(n, -1);
   std::vector<std::array<uint32_t, kKeys>> votes;
   std::vector<int32_t> label(n, -1);
@@ -1097,7 +1187,7 @@ void DecideByLabelVote(PeakTable* table, const std::vector<Hypothesis>& hyp, Uni
       // Only the direct view in a mirror's region is at risk: there the direct ray's other
       // lasers' points lie in the air beside whatever stands in front of the mirror.
       if (p.region != 0 && key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
-          !decided.Contains(hyp[p.first_hypothesis + h].point, key)) {
+          !(decided.At(hyp[p.first_hypothesis + h].point) >> key & 1u)) {
         ++summary->dropped_unsupported;
         continue;
       }
@@ -1118,8 +1208,8 @@ class SeenAlongRays {
     uint8_t laser;
   };
 
-  SeenAlongRays(const ScanArchive& archive, const PeakTable& table,
-                const std::vector<Hypothesis>& hyp, size_t cameras) {
+  SeenAlongRays(const ScanArchive& archive, const PeakTable& table, const Hypotheses& hyp,
+                size_t cameras) {
     width_ = table.columns;
     first_.assign(cameras * width_ + 1, 0);
     auto slot = [&](const PeakState& p) { return archive.frames[p.frame].camera * width_ + p.u; };
@@ -1164,7 +1254,7 @@ class SeenAlongRays {
 // laser taken for the next one consistently over many frames) fail one or the other. Both
 // judge every point against the same set, before any is dropped.
 void DropPointsSeenThrough(const Geometry& g, const ScanArchive& archive, const PeakTable& table,
-                           const std::vector<Hypothesis>& hyp, const ReconstructOptions& options,
+                           const Hypotheses& hyp, const ReconstructOptions& options, int threads,
                            std::vector<PeakState>* peaks, size_t* dropped) {
   const SeenAlongRays seen(archive, table, hyp, g.cameras.size());
   const double rows = options.free_space_rows_px;
@@ -1185,62 +1275,67 @@ void DropPointsSeenThrough(const Geometry& g, const ScanArchive& archive, const 
     views.push_back({&c->camera, c->camera.cam_from_world.rotation.toRotationMatrix(),
                      c->camera.cam_from_world.translation, c->camera.CenterInWorld()});
   }
-  std::vector<uint32_t> drop;
-  for (uint32_t i = 0; i < peaks->size(); ++i) {
-    const PeakState& p = (*peaks)[i];
-    if (p.chosen < 0) continue;
-    const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
-    if (h.Background()) continue;
-    const int laser = h.key % kMaxLasers;
-    const size_t own_camera = archive.frames[p.frame].camera;
-    size_t others = 0, agree = 0;
-    seen.ForEachNear(own_camera, p.u, p.v, rows, [&](const SeenAlongRays::Seen& s) {
-      if (s.laser == laser) return;
-      ++others;
-      if (std::abs(s.path_mm - h.path_mm) <= tolerance_mm * (1.0 + std::abs(s.v - p.v))) ++agree;
-    });
-    if (others > 0 && agree == 0) {
-      drop.push_back(i);
-      continue;
-    }
-    // Other lasers see it there. (A stereo confirmation is no such proof: two cameras'
-    // phantoms in front of a mirror met within 3 mm, 250 mm off the body.)
-    if (agree > 0) continue;
-    size_t through = 0, seen_there = 0;
-    const PointView own_view = static_cast<PointView>(h.key / kMaxLasers);
-    for (size_t c = 0; c < views.size() && seen_there == 0; ++c) {
-      if (!views[c].camera) continue;
-      for (int w = 0; w < 3 && seen_there == 0; ++w) {
-        if (c == own_camera && w == static_cast<int>(own_view)) continue;
-        if (w > 0 && g.mirror_rectangles.empty()) continue;
-        const Eigen::Vector3d point = w == 0 ? h.point : g.mirrors[w - 1].ReflectPoint(h.point);
-        const Eigen::Vector3d towards = point - views[c].center;
-        const double path = towards.norm();
-        // A mirror's view sees the point only through its glass.
-        if (w > 0) {
-          const auto t =
-              g.mirror_rectangles[w - 1].Intersect(Ray3d{views[c].center, towards / path});
-          if (!t || *t > path) continue;
-        }
-        const auto pixel = views[c].camera->intrinsics.Project(
-            views[c].cam_from_world_rotation * point + views[c].cam_from_world_translation);
-        if (!pixel || !views[c].camera->intrinsics.InImage(*pixel)) continue;
-        seen.ForEachNear(c, static_cast<int>(std::lround(pixel->x())), pixel->y(), rows,
-                         [&](const SeenAlongRays::Seen& s) {
-                           const double tolerance =
-                               tolerance_mm * (1.0 + std::abs(s.v - pixel->y()));
-                           if (std::abs(s.path_mm - path) <= tolerance) {
-                             ++seen_there;
-                           } else if (s.path_mm > path + tolerance) {
-                             ++through;
-                           }
-                         });
+  std::vector<uint8_t> drop(peaks->size(), 0);
+  ParallelFor(peaks->size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const PeakState& p = (*peaks)[i];
+      if (p.chosen < 0) continue;
+      const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+      if (h.Background()) continue;
+      const int laser = h.key % kMaxLasers;
+      const size_t own_camera = archive.frames[p.frame].camera;
+      size_t others = 0, agree = 0;
+      seen.ForEachNear(own_camera, p.u, p.v, rows, [&](const SeenAlongRays::Seen& s) {
+        if (s.laser == laser) return;
+        ++others;
+        if (std::abs(s.path_mm - h.path_mm) <= tolerance_mm * (1.0 + std::abs(s.v - p.v))) ++agree;
+      });
+      if (others > 0 && agree == 0) {
+        drop[i] = 1;
+        continue;
       }
+      // Other lasers see it there. (A stereo confirmation is no such proof: two cameras'
+      // phantoms in front of a mirror met within 3 mm, 250 mm off the body.)
+      if (agree > 0) continue;
+      size_t through = 0, seen_there = 0;
+      const PointView own_view = static_cast<PointView>(h.key / kMaxLasers);
+      for (size_t c = 0; c < views.size() && seen_there == 0; ++c) {
+        if (!views[c].camera) continue;
+        for (int w = 0; w < 3 && seen_there == 0; ++w) {
+          if (c == own_camera && w == static_cast<int>(own_view)) continue;
+          if (w > 0 && g.mirror_rectangles.empty()) continue;
+          const Eigen::Vector3d point = w == 0 ? h.point : g.mirrors[w - 1].ReflectPoint(h.point);
+          const Eigen::Vector3d towards = point - views[c].center;
+          const double path = towards.norm();
+          // A mirror's view sees the point only through its glass.
+          if (w > 0) {
+            const auto t =
+                g.mirror_rectangles[w - 1].Intersect(Ray3d{views[c].center, towards / path});
+            if (!t || *t > path) continue;
+          }
+          const auto pixel = views[c].camera->intrinsics.Project(
+              views[c].cam_from_world_rotation * point + views[c].cam_from_world_translation);
+          if (!pixel || !views[c].camera->intrinsics.InImage(*pixel)) continue;
+          seen.ForEachNear(c, static_cast<int>(std::lround(pixel->x())), pixel->y(), rows,
+                           [&](const SeenAlongRays::Seen& s) {
+                             const double tolerance =
+                                 tolerance_mm * (1.0 + std::abs(s.v - pixel->y()));
+                             if (std::abs(s.path_mm - path) <= tolerance) {
+                               ++seen_there;
+                             } else if (s.path_mm > path + tolerance) {
+                               ++through;
+                             }
+                           });
+        }
+      }
+      if (seen_there == 0 && through >= 2) drop[i] = 1;
     }
-    if (seen_there == 0 && through >= 2) drop.push_back(i);
+  });
+  for (size_t i = 0; i < drop.size(); ++i) {
+    if (!drop[i]) continue;
+    (*peaks)[i].chosen = -1;
+    ++*dropped;
   }
-  for (uint32_t i : drop) (*peaks)[i].chosen = -1;
-  *dropped += drop.size();
 }
 
 // Output points with their place in the (column, frame) grid.
@@ -1255,15 +1350,21 @@ struct GridPoint {
 
 class Grid {
  public:
-  Grid(const PeakTable& table, const std::vector<Hypothesis>& hyp) : table_(table) {
+  Grid(const PeakTable& table, const Hypotheses& hyp, int threads) : table_(table) {
     point_of_peak_.assign(table.peaks.size(), -1);
-    for (uint32_t i = 0; i < table.peaks.size(); ++i) {
-      const PeakState& p = table.peaks[i];
-      if (p.chosen < 0) continue;
-      const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
-      point_of_peak_[i] = static_cast<int32_t>(points.size());
-      points.push_back({i, h.point, h.last_direction, h.sin_angle, h.key, true});
-    }
+    int32_t count = 0;
+    for (uint32_t i = 0; i < table.peaks.size(); ++i)
+      if (table.peaks[i].chosen >= 0) point_of_peak_[i] = count++;
+    points.resize(count);
+    ParallelFor(table.peaks.size(), threads, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        if (point_of_peak_[i] < 0) continue;
+        const PeakState& p = table.peaks[i];
+        const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
+        points[point_of_peak_[i]] = {
+            static_cast<uint32_t>(i), h.point, h.last_direction, h.sin_angle, h.key, true};
+      }
+    });
     previous_frame_.assign(table.next_frame.size(), -1);
     for (size_t f = 0; f < table.next_frame.size(); ++f)
       if (table.next_frame[f] >= 0) previous_frame_[table.next_frame[f]] = static_cast<int32_t>(f);
@@ -1272,14 +1373,17 @@ class Grid {
   // Finds every point's neighbours once: the point of the same (view, laser) at column
   // u + du in the frame df away whose row is nearest, within row_step (same frame) or
   // frame_step (another frame).
-  void Link(double row_step, double frame_step) {
+  void Link(double row_step, double frame_step, int threads) {
     neighbours_.assign(points.size(), {});
-    for (size_t i = 0; i < points.size(); ++i) {
-      for (int df = -1; df <= 1; ++df)
-        for (int du = -1; du <= 1; ++du)
-          neighbours_[i][Direction(du, df)] =
-              du == 0 && df == 0 ? -1 : Search(points[i], du, df, df == 0 ? row_step : frame_step);
-    }
+    ParallelFor(points.size(), threads, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        for (int df = -1; df <= 1; ++df)
+          for (int du = -1; du <= 1; ++du)
+            neighbours_[i][Direction(du, df)] =
+                du == 0 && df == 0 ? -1
+                                   : Search(points[i], du, df, df == 0 ? row_step : frame_step);
+      }
+    });
   }
 
   // That neighbour while it is kept; -1 otherwise.
@@ -1342,57 +1446,64 @@ double Median(std::vector<double> values) {
 
 // ReconstructOptions::surface_check. The confident points are indexed in a grid of cells as
 // large as the radius (counting sort), so a point's neighbours are in its 27 cells.
-size_t DropOffSurface(const ReconstructOptions& options, std::vector<CloudPoint>* points) {
+size_t DropOffSurface(const ReconstructOptions& options, int threads,
+                      std::vector<CloudPoint>* points) {
   const double radius = options.surface_check_radius_mm;
   const float threshold = static_cast<float>(options.surface_check_confidence);
   const VoxelBox box(options.cylinder, radius);
-  std::vector<uint32_t> start(box.Voxels() + 1, 0);
-  std::vector<uint32_t> confident;
-  for (uint32_t i = 0; i < points->size(); ++i) {
-    const CloudPoint& cp = (*points)[i];
-    if (cp.confidence < threshold) continue;
-    if (const auto cell = box.Index(cp.point_in_world.cast<double>())) {
-      ++start[*cell + 1];
-      confident.push_back(i);
+  // Each confident point's cell; the points' places then by cell, side by side in memory.
+  constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
+  std::vector<uint32_t> cell_of(points->size(), kNone);
+  ParallelFor(points->size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const CloudPoint& cp = (*points)[i];
+      if (cp.confidence < threshold) continue;
+      if (const auto cell = box.Index(cp.point_in_world.cast<double>()))
+        cell_of[i] = static_cast<uint32_t>(*cell);
     }
-  }
+  });
+  std::vector<uint32_t> start(box.Voxels() + 1, 0);
+  for (const uint32_t cell : cell_of)
+    if (cell != kNone) ++start[cell + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<uint32_t> by_cell(confident.size());
+  std::vector<Eigen::Vector3f> by_cell(start.back());
   {
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
-    for (const uint32_t i : confident)
-      by_cell[fill[*box.Index((*points)[i].point_in_world.cast<double>())]++] = i;
+    for (size_t i = 0; i < points->size(); ++i)
+      if (cell_of[i] != kNone) by_cell[fill[cell_of[i]]++] = (*points)[i].point_in_world;
   }
   constexpr int kMinNeighbours = 6;
   const double radius2 = radius * radius;
-  std::vector<bool> drop(points->size(), false);
-  for (size_t i = 0; i < points->size(); ++i) {
-    const CloudPoint& cp = (*points)[i];
-    if (cp.confidence >= threshold) continue;
-    const Eigen::Vector3d at = cp.point_in_world.cast<double>();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-    int n = 0;
-    box.ForNeighbourhood(at, [&](size_t cell) {
-      for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
-        const Eigen::Vector3d q = (*points)[by_cell[k]].point_in_world.cast<double>() - at;
-        if (q.squaredNorm() > radius2) continue;
-        sum += q;
-        outer += q * q.transpose();
-        ++n;
+  std::vector<uint8_t> drop(points->size(), 0);
+  ParallelFor(points->size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const CloudPoint& cp = (*points)[i];
+      if (cp.confidence >= threshold) continue;
+      const Eigen::Vector3d at = cp.point_in_world.cast<double>();
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+      int n = 0;
+      box.ForNeighbourhood(at, [&](size_t cell) {
+        for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
+          const Eigen::Vector3d q = by_cell[k].cast<double>() - at;
+          if (q.squaredNorm() > radius2) continue;
+          sum += q;
+          outer += q * q.transpose();
+          ++n;
+        }
+      });
+      if (n < kMinNeighbours) {
+        drop[i] = cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
+        continue;
       }
-    });
-    if (n < kMinNeighbours) {
-      drop[i] = cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
-      continue;
+      const Eigen::Vector3d mean = sum / n;
+      const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+      const double rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
+      const double off = std::abs(solver.eigenvectors().col(0).dot(-mean));
+      drop[i] = off > options.surface_check_max_mm && off > 3.0 * rms;
     }
-    const Eigen::Vector3d mean = sum / n;
-    const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
-    const double rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
-    const double off = std::abs(solver.eigenvectors().col(0).dot(-mean));
-    drop[i] = off > options.surface_check_max_mm && off > 3.0 * rms;
-  }
+  });
   size_t kept = 0;
   for (size_t i = 0; i < points->size(); ++i)
     if (!drop[i]) (*points)[kept++] = (*points)[i];
@@ -1477,6 +1588,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   Reconstruction result;
   ReconstructSummary& summary = result.summary;
   Stopwatch stopwatch(&summary);
+  const int threads = ResolveThreads(options.threads);
   auto progress = [&](const char* stage, double fraction) {
     if (options.progress) options.progress(stage, fraction);
   };
@@ -1527,7 +1639,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
                                ? "the archive holds no frames (" + archive.report.message + ")"
                                : "no frame with the lasers on has any peak");
   }
-  PeakTable table = BuildTable(archive, use_frame);
+  PeakTable table = BuildTable(archive, use_frame, threads);
   stopwatch.Lap("read");
   progress("rays", 0.0);
   // Each peak undistorted and back-projected once, for the laser fit and the hypotheses.
@@ -1535,55 +1647,76 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   std::vector<std::optional<CameraRays>> camera_rays(g.cameras.size());
   for (size_t c = 0; c < g.cameras.size(); ++c)
     if (g.cameras[c]) camera_rays[c] = g.cameras[c]->camera.RaysThroughPixels();
-  for (size_t f = 0; f < archive.frames.size(); ++f) {
-    if (!use_frame[f]) continue;
-    const CameraRays& camera = *camera_rays[archive.frames[f].camera];
-    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i)
-      rays[i] = camera.Through({table.peaks[i].u, table.peaks[i].v});
-  }
+  ParallelFor(archive.frames.size(), threads, [&](size_t begin, size_t end) {
+    for (size_t f = begin; f < end; ++f) {
+      if (!use_frame[f]) continue;
+      const CameraRays& camera = *camera_rays[archive.frames[f].camera];
+      for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i)
+        rays[i] = camera.Through({table.peaks[i].u, table.peaks[i].v});
+    }
+  });
   stopwatch.Lap("rays");
   progress("laser heights", 0.0);
 
   const LaserPlanes planes = FitLaserPlanes(archive, calibration, g.cameras, options, &table.peaks,
-                                            table.frame_first, rays, &summary);
+                                            table.frame_first, rays, threads, &summary);
   stopwatch.Lap("laser heights");
 
-  // Hypotheses per peak.
-  std::vector<Hypothesis> hyp;
-  hyp.reserve(table.peaks.size() * 2);
-  for (size_t f = 0; f < archive.frames.size(); ++f) {
-    if (!use_frame[f]) continue;
-    if (f % 64 == 0) progress("triangulation", static_cast<double>(f) / archive.frames.size());
-    for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
-      PeakState& p = table.peaks[i];
-      p.first_hypothesis = static_cast<uint32_t>(hyp.size());
-      if (p.panel) {
-        ++summary.dropped_panel;
-        continue;
-      }
-      if (!planes.valid[f]) {
-        ++summary.dropped_no_ray;
-        continue;
-      }
-      Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder,
-                  options.mirror_clearance_mm, rays[i], &p, &hyp);
-      if (p.no_ray) {
-        ++summary.dropped_no_ray;
-      } else if (p.hypotheses == 0) {
-        ++summary.dropped_outside;
+  progress("triangulation", 0.0);
+  // Hypotheses per peak; each chunk of frames in its own stretch of the store. A peak has at
+  // most a surface and a panel hypothesis per laser on each of its ray's three segments.
+  const size_t frame_count = archive.frames.size();
+  const size_t most_per_peak = 3 * 2 * static_cast<size_t>(planes.count);
+  if (table.peaks.size() * most_per_peak >= std::numeric_limits<uint32_t>::max())
+    throw ReconstructError(
+        Format("%zu peaks are more than one reconstruction can take", table.peaks.size()));
+  Hypotheses hyp(table.peaks.size() * most_per_peak);
+  struct Counts {
+    size_t panel = 0, no_ray = 0, outside = 0;
+  };
+  std::vector<Counts> counts(ChunkCount(frame_count, threads));
+  ForEachChunk(frame_count, threads, [&](size_t c, size_t begin, size_t end) {
+    Hypotheses::Writer out{&hyp, static_cast<uint32_t>(table.frame_first[begin] * most_per_peak),
+                           static_cast<uint32_t>(table.frame_first[end] * most_per_peak)};
+    Counts& count = counts[c];
+    for (size_t f = begin; f < end; ++f) {
+      if (!use_frame[f]) continue;
+      for (uint32_t i = table.frame_first[f]; i < table.frame_first[f + 1]; ++i) {
+        PeakState& p = table.peaks[i];
+        p.first_hypothesis = out.size();
+        if (p.panel) {
+          ++count.panel;
+          continue;
+        }
+        if (!planes.valid[f]) {
+          ++count.no_ray;
+          continue;
+        }
+        Hypothesize(g, archive.frames[f], planes.per_frame[f], planes.count, options.cylinder,
+                    options.mirror_clearance_mm, rays[i], &p, &out);
+        if (p.no_ray) {
+          ++count.no_ray;
+        } else if (p.hypotheses == 0) {
+          ++count.outside;
+        }
       }
     }
+  });
+  for (const Counts& count : counts) {
+    summary.dropped_panel += count.panel;
+    summary.dropped_no_ray += count.no_ray;
+    summary.dropped_outside += count.outside;
   }
   stopwatch.Lap("triangulation");
   progress("correspondence", 0.0);
 
   if (options.stereo) {
-    ConfirmByStereo(archive, table, planes.per_frame, options.stereo_max_mm, &hyp);
+    ConfirmByStereo(archive, table, planes.per_frame, options.stereo_max_mm, threads, &hyp);
     stopwatch.Lap("stereo");
   }
-  DecideAlone(&table.peaks, hyp, options.cylinder);
-  DecideByVolume(&table.peaks, hyp, options.cylinder);
-  DecideByColumnCount(&table, hyp, planes.count);
+  DecideAlone(&table.peaks, hyp, options.cylinder, threads);
+  DecideByVolume(&table.peaks, hyp, options.cylinder, threads);
+  DecideByColumnCount(&table, hyp, planes.count, threads);
   UnionFind labels(table.peaks.size());
   LinkNeighbours(table, hyp, options, &labels);
   DecideByLabelVote(&table, hyp, &labels, options.cylinder, &summary);
@@ -1598,7 +1731,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   stopwatch.Lap("correspondence");
   if (options.free_space_check) {
     progress("free space", 0.0);
-    DropPointsSeenThrough(g, archive, table, hyp, options, &table.peaks,
+    DropPointsSeenThrough(g, archive, table, hyp, options, threads, &table.peaks,
                           &summary.dropped_seen_through);
     stopwatch.Lap("free space");
   }
@@ -1611,8 +1744,8 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
     if (h.panel) ++summary.dropped_panel;
     if (h.Background()) p.chosen = -1;
   }
-  Grid grid(table, hyp);
-  grid.Link(options.label_max_row_step_px, options.label_max_frame_step_px);
+  Grid grid(table, hyp, threads);
+  grid.Link(options.label_max_row_step_px, options.label_max_frame_step_px, threads);
   const double min_sin = std::sin(options.min_ray_plane_angle_deg * kDegToRad);
   for (GridPoint& gp : grid.points) {
     if (gp.sin_angle < min_sin) {
@@ -1639,12 +1772,14 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   // Stripe ends, decided on the whole stripe before any of it is dropped.
   std::vector<int> end_distance(grid.points.size(), 0);
   const int end_limit = std::max(1, options.stripe_end_columns) + 2;
-  for (size_t i = 0; i < grid.points.size(); ++i) {
-    const GridPoint& gp = grid.points[i];
-    if (!gp.keep) continue;
-    end_distance[i] =
-        std::min(RunLength(grid, gp, -1, end_limit), RunLength(grid, gp, +1, end_limit));
-  }
+  ParallelFor(grid.points.size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const GridPoint& gp = grid.points[i];
+      if (!gp.keep) continue;
+      end_distance[i] =
+          std::min(RunLength(grid, gp, -1, end_limit), RunLength(grid, gp, +1, end_limit));
+    }
+  });
   if (options.drop_stripe_ends) {
     for (size_t i = 0; i < grid.points.size(); ++i) {
       if (grid.points[i].keep && end_distance[i] < options.stripe_end_columns) {
@@ -1656,30 +1791,34 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   // Outliers: the second difference along the column and frame directions.
   if (options.remove_outliers) {
     std::vector<double> residual(grid.points.size(), -1.0);
+    ParallelFor(grid.points.size(), threads, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        const GridPoint& gp = grid.points[i];
+        if (!gp.keep) continue;
+        double best = std::numeric_limits<double>::infinity();
+        bool isolated = true;
+        for (const auto& [du, df] : {std::pair{1, 0}, std::pair{0, 1}}) {
+          const int32_t a = grid.Neighbour(gp, du, df);
+          const int32_t b = grid.Neighbour(gp, -du, -df);
+          if (a >= 0 || b >= 0) isolated = false;
+          if (a < 0 || b < 0) continue;
+          // Less a share of the chord: a curved surface sampled coarsely (successive frames far
+          // apart where the plane grazes it) bends away from the chord's midpoint by chord² / 8R.
+          const double chord = (grid.points[a].point - grid.points[b].point).norm();
+          const double off =
+              (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm();
+          best = std::min(best, std::max(0.0, off - options.outlier_chord_share * chord));
+        }
+        if (isolated) {
+          residual[i] = std::numeric_limits<double>::infinity();
+        } else if (std::isfinite(best)) {
+          residual[i] = best;
+        }
+      }
+    });
     std::vector<double> all;
-    for (size_t i = 0; i < grid.points.size(); ++i) {
-      const GridPoint& gp = grid.points[i];
-      if (!gp.keep) continue;
-      double best = std::numeric_limits<double>::infinity();
-      bool isolated = true;
-      for (const auto& [du, df] : {std::pair{1, 0}, std::pair{0, 1}}) {
-        const int32_t a = grid.Neighbour(gp, du, df);
-        const int32_t b = grid.Neighbour(gp, -du, -df);
-        if (a >= 0 || b >= 0) isolated = false;
-        if (a < 0 || b < 0) continue;
-        // Less a share of the chord: a curved surface sampled coarsely (successive frames far
-        // apart where the plane grazes it) bends away from the chord's midpoint by chord² / 8R.
-        const double chord = (grid.points[a].point - grid.points[b].point).norm();
-        const double off = (gp.point - 0.5 * (grid.points[a].point + grid.points[b].point)).norm();
-        best = std::min(best, std::max(0.0, off - options.outlier_chord_share * chord));
-      }
-      if (isolated) {
-        residual[i] = std::numeric_limits<double>::infinity();
-      } else if (std::isfinite(best)) {
-        residual[i] = best;
-        all.push_back(best);
-      }
-    }
+    for (const double r : residual)
+      if (r >= 0 && std::isfinite(r)) all.push_back(r);
     // Gross errors only: the surface's own bends (edges, folds) stay.
     const double limit =
         std::max(options.outlier_min_mm, options.outlier_sigmas * 1.4826 * Median(all));
@@ -1706,22 +1845,24 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   auto usable = [&](const GridPoint& gp, int32_t q) {
     return q >= 0 && (grid.points[q].point - gp.point).norm() <= kSmoothMaxMm;
   };
-  for (size_t i = 0; i < grid.points.size(); ++i) {
-    const GridPoint& gp = grid.points[i];
-    smoothed[i] = gp.point;
-    if (!gp.keep || !options.smooth_3x3) continue;
-    Eigen::Vector3d sum = gp.point;
-    int n = 1;
-    for (const auto& [du, df] :
-         {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
-      const int32_t a = grid.Neighbour(gp, du, df);
-      const int32_t b = grid.Neighbour(gp, -du, -df);
-      if (!usable(gp, a) || !usable(gp, b)) continue;
-      sum += grid.points[a].point + grid.points[b].point;
-      n += 2;
+  ParallelFor(grid.points.size(), threads, [&](size_t begin, size_t end) {
+    for (size_t i = begin; i < end; ++i) {
+      const GridPoint& gp = grid.points[i];
+      smoothed[i] = gp.point;
+      if (!gp.keep || !options.smooth_3x3) continue;
+      Eigen::Vector3d sum = gp.point;
+      int n = 1;
+      for (const auto& [du, df] :
+           {std::pair{1, 0}, std::pair{0, 1}, std::pair{1, 1}, std::pair{1, -1}}) {
+        const int32_t a = grid.Neighbour(gp, du, df);
+        const int32_t b = grid.Neighbour(gp, -du, -df);
+        if (!usable(gp, a) || !usable(gp, b)) continue;
+        sum += grid.points[a].point + grid.points[b].point;
+        n += 2;
+      }
+      smoothed[i] = sum / n;
     }
-    smoothed[i] = sum / n;
-  }
+  });
   stopwatch.Lap("filtering");
   progress("normals", 0.0);
 
@@ -1730,61 +1871,75 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   summary.points_per_camera.assign(g.cameras.size(), 0);
   summary.points_per_view.assign(kViews, 0);
   summary.points_per_laser.assign(planes.count, 0);
-  for (size_t i = 0; i < grid.points.size(); ++i) {
-    const GridPoint& gp = grid.points[i];
-    if (!gp.keep) continue;
-    auto tangent = [&](int du, int df) -> std::optional<Eigen::Vector3d> {
-      const int32_t a = grid.Neighbour(gp, du, df);
-      const int32_t b = grid.Neighbour(gp, -du, -df);
-      if (a < 0 && b < 0) return std::nullopt;
-      const Eigen::Vector3d pa = a >= 0 ? smoothed[a] : smoothed[i];
-      const Eigen::Vector3d pb = b >= 0 ? smoothed[b] : smoothed[i];
-      return pa - pb;
-    };
-    const auto along_column = tangent(1, 0);
-    const auto along_frame = tangent(0, 1);
-    Eigen::Vector3d normal = -gp.last_direction;
-    if (along_column && along_frame) {
-      const Eigen::Vector3d n = along_column->cross(*along_frame);
-      if (n.norm() > 1e-9) normal = n.normalized();
-    } else if (along_column) {
-      // Only the stripe's direction: the normal closest to the ray that is orthogonal to it.
-      const Eigen::Vector3d t = along_column->normalized();
-      const Eigen::Vector3d n = -gp.last_direction - t.dot(-gp.last_direction) * t;
-      if (n.norm() > 1e-9) normal = n.normalized();
-    }
-    if (normal.dot(gp.last_direction) > 0) normal = -normal;
+  // Each chunk of grid points into its own list, joined in order.
+  struct CloudChunk {
+    std::vector<CloudPoint> points;
+    size_t low_confidence = 0;
+  };
+  std::vector<CloudChunk> cloud_chunks(ChunkCount(grid.points.size(), threads));
+  ForEachChunk(grid.points.size(), threads, [&](size_t chunk, size_t begin, size_t end) {
+    CloudChunk& out = cloud_chunks[chunk];
+    for (size_t i = begin; i < end; ++i) {
+      const GridPoint& gp = grid.points[i];
+      if (!gp.keep) continue;
+      auto tangent = [&](int du, int df) -> std::optional<Eigen::Vector3d> {
+        const int32_t a = grid.Neighbour(gp, du, df);
+        const int32_t b = grid.Neighbour(gp, -du, -df);
+        if (a < 0 && b < 0) return std::nullopt;
+        const Eigen::Vector3d pa = a >= 0 ? smoothed[a] : smoothed[i];
+        const Eigen::Vector3d pb = b >= 0 ? smoothed[b] : smoothed[i];
+        return pa - pb;
+      };
+      const auto along_column = tangent(1, 0);
+      const auto along_frame = tangent(0, 1);
+      Eigen::Vector3d normal = -gp.last_direction;
+      if (along_column && along_frame) {
+        const Eigen::Vector3d n = along_column->cross(*along_frame);
+        if (n.norm() > 1e-9) normal = n.normalized();
+      } else if (along_column) {
+        // Only the stripe's direction: the normal closest to the ray that is orthogonal to it.
+        const Eigen::Vector3d t = along_column->normalized();
+        const Eigen::Vector3d n = -gp.last_direction - t.dot(-gp.last_direction) * t;
+        if (n.norm() > 1e-9) normal = n.normalized();
+      }
+      if (normal.dot(gp.last_direction) > 0) normal = -normal;
 
-    const PeakState& p = table.peaks[gp.peak];
-    const FrameRecord& frame = archive.frames[p.frame];
-    CloudPoint cp;
-    cp.point_in_world = smoothed[i].cast<float>();
-    cp.normal = normal.cast<float>();
-    cp.camera = frame.camera;
-    cp.view = static_cast<PointView>(gp.key / kMaxLasers);
-    cp.laser = static_cast<uint8_t>(gp.key % kMaxLasers);
-    cp.frame = frame.sequence;
-    cp.u = p.u;
-    cp.v = p.v;
-    cp.rule = p.rule == Rule::kVolume        ? DecidedBy::kVolume
-              : p.rule == Rule::kColumnCount ? DecidedBy::kColumnCount
-              : p.rule == Rule::kLabelVote   ? DecidedBy::kLabelVote
-              : p.rule == Rule::kStereo      ? DecidedBy::kStereo
-                                             : DecidedBy::kCylinder;
-    // Peak score, how squarely the ray meets the plane, how far from the stripe's end.
-    const double angle_factor = std::min(1.0, gp.sin_angle / std::sin(30.0 * kDegToRad));
-    const double end_factor =
-        std::min(1.0, (end_distance[i] + 1.0) / (options.stripe_end_columns + 2.0));
-    cp.confidence = static_cast<float>(std::clamp(p.score * angle_factor * end_factor, 0.0, 1.0));
-    if (cp.confidence < options.min_confidence) {
-      ++summary.dropped_low_confidence;
-      continue;
+      const PeakState& p = table.peaks[gp.peak];
+      const FrameRecord& frame = archive.frames[p.frame];
+      CloudPoint cp;
+      cp.point_in_world = smoothed[i].cast<float>();
+      cp.normal = normal.cast<float>();
+      cp.camera = frame.camera;
+      cp.view = static_cast<PointView>(gp.key / kMaxLasers);
+      cp.laser = static_cast<uint8_t>(gp.key % kMaxLasers);
+      cp.frame = frame.sequence;
+      cp.u = p.u;
+      cp.v = p.v;
+      cp.rule = p.rule == Rule::kVolume        ? DecidedBy::kVolume
+                : p.rule == Rule::kColumnCount ? DecidedBy::kColumnCount
+                : p.rule == Rule::kLabelVote   ? DecidedBy::kLabelVote
+                : p.rule == Rule::kStereo      ? DecidedBy::kStereo
+                                               : DecidedBy::kCylinder;
+      // Peak score, how squarely the ray meets the plane, how far from the stripe's end.
+      const double angle_factor = std::min(1.0, gp.sin_angle / std::sin(30.0 * kDegToRad));
+      const double end_factor =
+          std::min(1.0, (end_distance[i] + 1.0) / (options.stripe_end_columns + 2.0));
+      cp.confidence = static_cast<float>(std::clamp(p.score * angle_factor * end_factor, 0.0, 1.0));
+      if (cp.confidence < options.min_confidence) {
+        ++out.low_confidence;
+        continue;
+      }
+      out.points.push_back(cp);
     }
-    cloud.points.push_back(cp);
+  });
+  for (CloudChunk& chunk : cloud_chunks) {
+    cloud.points.insert(cloud.points.end(), chunk.points.begin(), chunk.points.end());
+    summary.dropped_low_confidence += chunk.low_confidence;
   }
+  cloud_chunks.clear();
   stopwatch.Lap("normals");
   if (options.surface_check) {
-    summary.dropped_off_surface = DropOffSurface(options, &cloud.points);
+    summary.dropped_off_surface = DropOffSurface(options, threads, &cloud.points);
     stopwatch.Lap("surface check");
   }
   for (const CloudPoint& cp : cloud.points) {

@@ -165,6 +165,9 @@ struct ReconstructOptions {
   // Optional ICP refinement of mirror views and the lower camera against the rest
   // (reported; off by default).
   bool icp = false;
+  // Worker threads for the per-peak and per-point stages (0: every core). The cloud is the
+  // same for any number.
+  int threads = 0;
   // Progress: a stage name and how far it is in [0, 1]. May be empty.
   std::function<void(const std::string& stage, double fraction)> progress;
 };
