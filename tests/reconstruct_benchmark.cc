@@ -1,6 +1,6 @@
 // Reconstruction speed: a whole 10 s, two-camera, three-laser sweep of the mannequin
-// (docs/reconstruction.md) from the archive's bytes to the filtered, merged cloud, one
-// thread. The sweep is rendered once outside the timing, or read from
+// (docs/reconstruction.md) from the archive's bytes to the filtered, merged cloud, on the
+// given number of threads (0: every core). The sweep is rendered once outside the timing, or read from
 // MIRRORSCAN_BENCH_SCAN (an .mscan) with MIRRORSCAN_BENCH_CALIBRATION (its calibration).
 #include <benchmark/benchmark.h>
 
@@ -85,6 +85,7 @@ void BM_ReconstructSweep(benchmark::State& state) {
   const Input& input = Sweep();
   reconstruction::ReconstructOptions options;
   options.allow_calibration_mismatch = true;  // the calibration is given with the archive
+  options.threads = static_cast<int>(state.range(0));
   size_t points = 0;
   for (auto _ : state) {
     const ScanArchive archive = ReadScan(input.archive);
@@ -100,6 +101,9 @@ void BM_ReconstructSweep(benchmark::State& state) {
                          benchmark::Counter::kIsRate);
 }
 BENCHMARK(BM_ReconstructSweep)
+    ->ArgName("threads")
+    ->Arg(1)
+    ->Arg(0)
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime()
     ->UseRealTime();

@@ -1,6 +1,7 @@
 #include "host/calibration/laser_height.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -35,6 +36,37 @@ double Median(std::vector<double> values) {
 }
 
 // Every peak whose camera ray meets a panel before any mirror.
+}  // namespace
+
+std::optional<PanelPoint> PanelPointOnRay(const LaserCabinet& cabinet, size_t frame, uint16_t u,
+                                          float v, const Ray3d& ray) {
+  double nearest = std::numeric_limits<double>::infinity();
+  int panel = -1;
+  for (size_t p = 0; p < cabinet.panels.size(); ++p) {
+    if (const auto t = cabinet.panels[p].Intersect(ray); t && *t < nearest) {
+      nearest = *t;
+      panel = static_cast<int>(p);
+    }
+  }
+  if (panel < 0) return std::nullopt;
+  for (const PlanarRectangle& m : cabinet.mirrors)
+    if (const auto t = m.Intersect(ray); t && *t < nearest) return std::nullopt;
+  // The panel plane n·x + d = 0 moved δ further back is n·x + d + δ = 0: the ray meets it at
+  // t − δ/(n·r).
+  const Eigen::Vector3d per_offset =
+      -ray.direction / cabinet.panels[panel].plane.normal.dot(ray.direction);
+  return PanelPoint{frame, panel, u, v, ray.At(nearest), per_offset, -1, 0.0};
+}
+
+namespace {
+
+void CheckInputs(const std::vector<FrameRecord>& frames, const LaserCabinet& cabinet) {
+  if (cabinet.laser_count < 1) throw LaserHeightError("laser count must be at least 1");
+  if (cabinet.panel_offset_mm.size() != cabinet.panels.size())
+    throw LaserHeightError("the cabinet needs one panel offset per panel");
+  if (frames.empty()) throw LaserHeightError("the scan has no frames");
+}
+
 // Frames in chunks on `threads`, each chunk's points in frame order, joined in chunk order.
 std::vector<PanelPoint> CollectPanelPoints(const std::vector<FrameRecord>& frames,
                                            const LaserCabinet& cabinet, int threads) {
@@ -57,26 +89,8 @@ std::vector<PanelPoint> CollectPanelPoints(const std::vector<FrameRecord>& frame
       for (const Peak& peak : frame.peaks) {
         const auto ray = camera.Through({peak.u, peak.v});
         if (!ray) continue;
-        double nearest = std::numeric_limits<double>::infinity();
-        int panel = -1;
-        for (size_t p = 0; p < cabinet.panels.size(); ++p) {
-          if (const auto t = cabinet.panels[p].Intersect(*ray); t && *t < nearest) {
-            nearest = *t;
-            panel = static_cast<int>(p);
-          }
-        }
-        if (panel < 0) continue;
-        const bool behind_mirror = std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
-                                               [&](const PlanarRectangle& m) {
-                                                 const auto t = m.Intersect(*ray);
-                                                 return t && *t < nearest;
-                                               });
-        if (behind_mirror) continue;
-        // The panel plane n·x + d = 0 moved δ further back is n·x + d + δ = 0: the ray meets
-        // it at t − δ/(n·r).
-        const Eigen::Vector3d per_offset =
-            -ray->direction / cabinet.panels[panel].plane.normal.dot(ray->direction);
-        points.push_back({f, panel, peak.u, peak.v, ray->At(nearest), per_offset, -1, 0.0});
+        if (auto point = PanelPointOnRay(cabinet, f, peak.u, peak.v, *ray))
+          points.push_back(*point);
       }
     }
   });
@@ -214,32 +228,45 @@ Columns LayOutColumns(const std::vector<int>& seen, const std::vector<int>& pane
   return columns;
 }
 
-// The inliers' normal equations, linear in δ about the current tilt (a, b).
+// The inliers' normal equations, linear in δ about the current tilt (a, b). A point's row
+// has at most six non-zero entries, so only those products are summed (in point order, as
+// a dense rank update would sum them: the same result, a fraction of the work).
 void NormalEquations(const std::vector<PanelPoint>& points, const std::vector<double>& point_time,
                      const Columns& columns, double a, double b, Eigen::MatrixXd* normal_matrix,
                      Eigen::VectorXd* rhs) {
   *normal_matrix = Eigen::MatrixXd::Zero(columns.count, columns.count);
   *rhs = Eigen::VectorXd::Zero(columns.count);
-  Eigen::VectorXd row(columns.count);
+  double* m = normal_matrix->data();  // column-major
+  const Eigen::Index rows = normal_matrix->rows();
   for (size_t i = 0; i < points.size(); ++i) {
     const PanelPoint& p = points[i];
     if (p.laser < 0) continue;
-    row.setZero();
-    row(0) = 1.0;
-    row(1) = point_time[i];
-    if (columns.laser[p.laser] >= 0) row(columns.laser[p.laser]) = 1.0;
+    std::array<int, 6> column;
+    std::array<double, 6> value;
+    int n = 0;
+    auto set = [&](int c, double v) {
+      column[n] = c;
+      value[n++] = v;
+    };
+    set(0, 1.0);
+    set(1, point_time[i]);
+    if (columns.laser[p.laser] >= 0) set(columns.laser[p.laser], 1.0);
     if (columns.tilt >= 0) {
-      row(columns.tilt) = -p.point_in_world.x();
-      row(columns.tilt + 1) = -p.point_in_world.y();
+      set(columns.tilt, -p.point_in_world.x());
+      set(columns.tilt + 1, -p.point_in_world.y());
     }
     // z(δ) + a·x(δ) + b·y(δ) with x(δ) = x + w·δ.
     const Eigen::Vector3d& w = p.point_per_offset_mm;
     if (columns.offset[p.panel] >= 0)
-      row(columns.offset[p.panel]) = -(w.z() + a * w.x() + b * w.y());
-    normal_matrix->selfadjointView<Eigen::Lower>().rankUpdate(row);
+      set(columns.offset[p.panel], -(w.z() + a * w.x() + b * w.y()));
+    // The lower triangle.
+    for (int j = 0; j < n; ++j)
+      for (int k = 0; k < n; ++k)
+        if (column[k] >= column[j]) m[column[j] * rows + column[k]] += value[j] * value[k];
     // A tilt that is not an unknown is a given one (0 unless LaserHeightOptions::normal).
     const Eigen::Vector3d& x = p.point_in_world;
-    *rhs += row * (columns.tilt >= 0 ? x.z() : x.z() + a * x.x() + b * x.y());
+    const double target = columns.tilt >= 0 ? x.z() : x.z() + a * x.x() + b * x.y();
+    for (int j = 0; j < n; ++j) (*rhs)(column[j]) += value[j] * target;
   }
   normal_matrix->triangularView<Eigen::StrictlyUpper>() = normal_matrix->transpose();
 }
@@ -452,15 +479,22 @@ Eigen::Vector2d LaserFit::TiltDeg() const {
 LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
                                        const LaserCabinet& cabinet,
                                        const LaserHeightOptions& options) {
-  if (cabinet.laser_count < 1) throw LaserHeightError("laser count must be at least 1");
-  if (cabinet.panel_offset_mm.size() != cabinet.panels.size())
-    throw LaserHeightError("the cabinet needs one panel offset per panel");
-  if (frames.empty()) throw LaserHeightError("the scan has no frames");
+  CheckInputs(frames, cabinet);
+  return EstimateLaserHeightsFromPoints(
+      frames, cabinet, CollectPanelPoints(frames, cabinet, ResolveThreads(options.threads)),
+      options);
+}
+
+LaserHeightResult EstimateLaserHeightsFromPoints(const std::vector<FrameRecord>& frames,
+                                                 const LaserCabinet& cabinet,
+                                                 std::vector<PanelPoint> panel_points,
+                                                 const LaserHeightOptions& options) {
+  CheckInputs(frames, cabinet);
+  const int threads = ResolveThreads(options.threads);
   LaserHeightResult result;
   LaserFit& fit = result.fit;
   fit.time_origin_ns = options.time_origin_ns.value_or(frames.front().timestamp_ns);
-  const int threads = ResolveThreads(options.threads);
-  result.points = CollectPanelPoints(frames, cabinet, threads);
+  result.points = std::move(panel_points);
   std::vector<PanelPoint>& points = result.points;
   result.candidates = points.size();
   if (points.size() < kMinPanelPoints) {

@@ -191,4 +191,17 @@ LaserHeightResult EstimateLaserHeights(const std::vector<FrameRecord>& frames,
                                        const LaserCabinet& cabinet,
                                        const LaserHeightOptions& options = {});
 
+// Where a peak's camera ray meets a panel before any mirror: its panel point (laser not yet
+// known); nullopt where it meets none first.
+std::optional<PanelPoint> PanelPointOnRay(const LaserCabinet& cabinet, size_t frame, uint16_t u,
+                                          float v, const Ray3d& ray);
+
+// The same as EstimateLaserHeights from the panel points already found (PanelPointOnRay, in
+// frame order), for a caller that has every peak's ray anyway: the frames give times,
+// cameras and readbacks; their peaks are not read.
+LaserHeightResult EstimateLaserHeightsFromPoints(const std::vector<FrameRecord>& frames,
+                                                 const LaserCabinet& cabinet,
+                                                 std::vector<PanelPoint> points,
+                                                 const LaserHeightOptions& options = {});
+
 }  // namespace mirrorscan

@@ -318,37 +318,24 @@ LaserPlanes FitLaserPlanes(const ScanArchive& archive, const Calibration& calibr
       lo.fit_panel_offsets = false;
       lo.threads = threads;
       if (calibration.lasers) lo.normal = calibration.lasers->normal;
-      // The fit undistorts every peak it is given; each peak's ray is already known here,
-      // so it gets only the peaks whose ray meets a panel before any mirror (the same test
-      // it applies), not the subject's.
-      std::vector<FrameRecord> candidates(archive.frames.size());
-      ParallelFor(archive.frames.size(), threads, [&](size_t begin, size_t end) {
+      // Each peak's ray is known here: the fit gets the points where one meets a panel before
+      // any mirror, found as it would find them, without undistorting every peak again.
+      std::vector<std::vector<PanelPoint>> chunks(ChunkCount(archive.frames.size(), threads));
+      ForEachChunk(archive.frames.size(), threads, [&](size_t chunk, size_t begin, size_t end) {
         for (size_t f = begin; f < end; ++f) {
-          const FrameRecord& frame = archive.frames[f];
-          FrameRecord& c = candidates[f];
-          c.camera = frame.camera;
-          c.lasers_on = frame.lasers_on;
-          c.sequence = frame.sequence;
-          c.timestamp_ns = frame.timestamp_ns;
-          c.slide_position_mm = frame.slide_position_mm;
           for (uint32_t i = frame_first[f]; i < frame_first[f + 1]; ++i) {
             if (!rays[i]) continue;
-            double nearest = std::numeric_limits<double>::infinity();
-            for (const PlanarRectangle& panel : cabinet.panels)
-              if (const auto t = panel.Intersect(*rays[i]); t && *t < nearest) nearest = *t;
-            if (!std::isfinite(nearest)) continue;
-            if (std::any_of(cabinet.mirrors.begin(), cabinet.mirrors.end(),
-                            [&](const PlanarRectangle& m) {
-                              const auto t = m.Intersect(*rays[i]);
-                              return t && *t < nearest;
-                            }))
-              continue;
             const PeakState& p = (*peaks)[i];
-            c.peaks.push_back(Peak{p.u, p.v, 0.0f, 0.0f, p.score});  // the fit reads u and v
+            if (auto point = PanelPointOnRay(cabinet, f, p.u, p.v, *rays[i]))
+              chunks[chunk].push_back(*point);
           }
         }
       });
-      const LaserHeightResult result = EstimateLaserHeights(candidates, cabinet, lo);
+      std::vector<PanelPoint> panel_points;
+      for (const auto& chunk : chunks)
+        panel_points.insert(panel_points.end(), chunk.begin(), chunk.end());
+      const LaserHeightResult result =
+          EstimateLaserHeightsFromPoints(archive.frames, cabinet, std::move(panel_points), lo);
       const LaserFit& fit = result.fit;
       for (size_t f = 0; f < archive.frames.size(); ++f) {
         const double t = fit.TimeS(archive.frames[f].timestamp_ns);
@@ -636,26 +623,25 @@ class NeighbourhoodBits {
   void Add(const Eigen::Vector3d& point, Bits bits) {
     if (const auto i = box_.IndexInMargin(point)) cells_[*i] |= bits;
   }
-  void Spread() {
+  void Spread(int threads) {
     const Eigen::Vector3i& size = box_.Size();
     const size_t sx = size.x(), sy = size.y(), sz = size.z();
-    // Axis by axis: blocks of n rows of `stride` voxels each, every voxel ORed with the
-    // voxels a row before and after it (as they were before this pass).
+    // Axis by axis: lines of n voxels `stride` apart, in blocks of `stride` lines side by
+    // side; every voxel ORed with the voxels before and after it on its line (as they were
+    // before this pass). Lines are independent, so they go to the threads.
     auto pass = [&](size_t blocks, size_t n, size_t stride) {
-      std::vector<Bits> before(stride);
-      for (size_t b = 0; b < blocks; ++b) {
-        std::fill(before.begin(), before.end(), Bits{0});
-        Bits* block = cells_.data() + b * n * stride;
-        for (size_t k = 0; k < n; ++k) {
-          Bits* row = block + k * stride;
-          for (size_t j = 0; j < stride; ++j) {
-            const Bits own = row[j];
-            const Bits after = k + 1 < n ? row[j + stride] : Bits{0};
-            row[j] = static_cast<Bits>(before[j] | own | after);
-            before[j] = own;
+      ParallelFor(blocks * stride, threads, [&](size_t first, size_t last) {
+        for (size_t line = first; line < last; ++line) {
+          Bits* at = cells_.data() + (line / stride) * n * stride + line % stride;
+          Bits before = 0;
+          for (size_t k = 0; k < n; ++k, at += stride) {
+            const Bits own = *at;
+            const Bits after = k + 1 < n ? at[stride] : Bits{0};
+            *at = static_cast<Bits>(before | own | after);
+            before = own;
           }
         }
-      }
+      });
     };
     pass(sy * sz, sx, 1);
     pass(sz, sy, sx);
@@ -774,7 +760,7 @@ void DecideByVolume(std::vector<PeakState>* peaks, const Hypotheses& hyp,
   for (const PeakState& p : *peaks)
     if (p.rule == Rule::kCylinder || p.rule == Rule::kStereo)
       occupied.Add(hyp[p.first_hypothesis + p.chosen].point, 1);
-  occupied.Spread();
+  occupied.Spread(threads);
   ParallelFor(peaks->size(), threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       PeakState& p = (*peaks)[i];
@@ -1139,7 +1125,7 @@ void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_coun
 
 // Majority vote per label over the peaks decided alone; the winner decides the rest.
 void DecideByLabelVote(PeakTable* table, const Hypotheses& hyp, UnionFind* labels,
-                       const BoundingCylinder& cylinder, ReconstructSummary* summary) {
+                       const BoundingCylinder& cylinder, int threads, ReconstructSummary* summary) {
   const size_t n = table->peaks.size();
   NeighbourhoodBits<uint16_t> decided(cylinder, kKeyOccupancyVoxelMm);
   for (const PeakState& p : table->peaks) {
@@ -1147,7 +1133,7 @@ void DecideByLabelVote(PeakTable* table, const Hypotheses& hyp, UnionFind* label
     const Hypothesis& h = hyp[p.first_hypothesis + p.chosen];
     decided.Add(h.point, static_cast<uint16_t>(1u << h.key));
   }
-  decided.Spread();
+  decided.Spread(threads);
   std::vector<int32_t> label_of_root(n, -1);
   std::vector<std::array<uint32_t, kKeys>> votes;
   std::vector<int32_t> label(n, -1);
@@ -1167,33 +1153,46 @@ void DecideByLabelVote(PeakTable* table, const Hypotheses& hyp, UnionFind* label
     const auto best = std::max_element(votes[l].begin(), votes[l].end());
     if (*best > 0) winner[l] = static_cast<int>(best - votes[l].begin());
   }
-  for (uint32_t i = 0; i < n; ++i) {
-    PeakState& p = table->peaks[i];
-    if (label[i] < 0) continue;
-    const int key = winner[label[i]];
-    if (key < 0) {
-      ++summary->dropped_ambiguous;
-      p.chosen = -1;
-      continue;
-    }
-    const int h = FindHypothesis(hyp, p, key);
-    if (h < 0 || (p.chosen >= 0 && p.chosen != h)) {
-      ++summary->dropped_conflict;
-      p.chosen = -1;
-      p.rule = Rule::kNone;
-      continue;
-    }
-    if (p.chosen < 0) {
-      // Only the direct view in a mirror's region is at risk: there the direct ray's other
-      // lasers' points lie in the air beside whatever stands in front of the mirror.
-      if (p.region != 0 && key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
-          !(decided.At(hyp[p.first_hypothesis + h].point) >> key & 1u)) {
-        ++summary->dropped_unsupported;
+  // Each peak decided on its own from its label's winner, chunk by chunk.
+  struct Counts {
+    size_t ambiguous = 0, conflict = 0, unsupported = 0;
+  };
+  std::vector<Counts> counts(ChunkCount(n, threads));
+  ForEachChunk(n, threads, [&](size_t chunk, size_t begin, size_t end) {
+    Counts& count = counts[chunk];
+    for (size_t i = begin; i < end; ++i) {
+      PeakState& p = table->peaks[i];
+      if (label[i] < 0) continue;
+      const int key = winner[label[i]];
+      if (key < 0) {
+        ++count.ambiguous;
+        p.chosen = -1;
         continue;
       }
-      p.chosen = static_cast<int16_t>(h);
-      p.rule = Rule::kLabelVote;
+      const int h = FindHypothesis(hyp, p, key);
+      if (h < 0 || (p.chosen >= 0 && p.chosen != h)) {
+        ++count.conflict;
+        p.chosen = -1;
+        p.rule = Rule::kNone;
+        continue;
+      }
+      if (p.chosen < 0) {
+        // Only the direct view in a mirror's region is at risk: there the direct ray's other
+        // lasers' points lie in the air beside whatever stands in front of the mirror.
+        if (p.region != 0 && key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
+            !(decided.At(hyp[p.first_hypothesis + h].point) >> key & 1u)) {
+          ++count.unsupported;
+          continue;
+        }
+        p.chosen = static_cast<int16_t>(h);
+        p.rule = Rule::kLabelVote;
+      }
     }
+  });
+  for (const Counts& count : counts) {
+    summary->dropped_ambiguous += count.ambiguous;
+    summary->dropped_conflict += count.conflict;
+    summary->dropped_unsupported += count.unsupported;
   }
 }
 
@@ -1719,7 +1718,7 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
   DecideByColumnCount(&table, hyp, planes.count, threads);
   UnionFind labels(table.peaks.size());
   LinkNeighbours(table, hyp, options, &labels);
-  DecideByLabelVote(&table, hyp, &labels, options.cylinder, &summary);
+  DecideByLabelVote(&table, hyp, &labels, options.cylinder, threads, &summary);
   for (const PeakState& p : table.peaks) {
     if (p.chosen < 0) continue;
     if (p.rule == Rule::kStereo) ++summary.decided_by_stereo;
