@@ -25,12 +25,4 @@ Eigen::Matrix4d Plane::ReflectionMatrix() const {
   return m;
 }
 
-std::optional<double> IntersectRayPlane(const Ray3d& ray, const Plane& plane, double t_min) {
-  const double denominator = plane.normal.dot(ray.direction);
-  if (std::abs(denominator) < 1e-12) return std::nullopt;
-  const double t = -plane.SignedDistance(ray.origin) / denominator;
-  if (!(t >= t_min)) return std::nullopt;
-  return t;
-}
-
 }  // namespace mirrorscan

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cmath>
 #include <optional>
 
 #include <Eigen/Core>
@@ -43,6 +44,14 @@ struct Plane {
 };
 
 // Ray parameter t >= t_min where the ray meets the plane; nullopt when parallel or behind.
-std::optional<double> IntersectRayPlane(const Ray3d& ray, const Plane& plane, double t_min = 0.0);
+// Inline: the reconstruction calls it some twenty million times per sweep.
+inline std::optional<double> IntersectRayPlane(const Ray3d& ray, const Plane& plane,
+                                               double t_min = 0.0) {
+  const double denominator = plane.normal.dot(ray.direction);
+  if (std::abs(denominator) < 1e-12) return std::nullopt;
+  const double t = -plane.SignedDistance(ray.origin) / denominator;
+  if (!(t >= t_min)) return std::nullopt;
+  return t;
+}
 
 }  // namespace mirrorscan

@@ -397,15 +397,6 @@ JointFit FitJointly(std::vector<PanelPoint>& points, const std::vector<double>& 
 
 }  // namespace
 
-std::optional<double> PlanarRectangle::Intersect(const Ray3d& ray) const {
-  const auto t = IntersectRayPlane(ray, plane);
-  if (!t) return std::nullopt;
-  const Eigen::Vector3d local = ray.At(*t) - origin;
-  const double a = local.dot(along), b = local.dot(up);
-  if (a < 0 || a > width || b < 0 || b > height) return std::nullopt;
-  return t;
-}
-
 PlanarRectangle MirrorRectangle(const std::string& name, const Plane& mirror,
                                 const std::array<Eigen::Vector3d, 4>& corners) {
   PlanarRectangle r;

@@ -39,8 +39,16 @@ struct PlanarRectangle {
   double width = 0.0;
   double height = 0.0;
 
-  // Where the ray meets the rectangle (ray parameter), nullopt if it misses it.
-  std::optional<double> Intersect(const Ray3d& ray) const;
+  // Where the ray meets the rectangle (ray parameter), nullopt if it misses it. Inline: the
+  // reconstruction tries every panel and mirror on every ray segment.
+  std::optional<double> Intersect(const Ray3d& ray) const {
+    const auto t = IntersectRayPlane(ray, plane);
+    if (!t) return std::nullopt;
+    const Eigen::Vector3d local = ray.At(*t) - origin;
+    const double a = local.dot(along), b = local.dot(up);
+    if (a < 0 || a > width || b < 0 || b > height) return std::nullopt;
+    return t;
+  }
 };
 
 // The cabinet as the laser fit needs it: cameras by FrameRecord::camera, the mirror
