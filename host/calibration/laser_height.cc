@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -296,6 +297,7 @@ JointFit FitJointly(std::vector<PanelPoint>& points, const std::vector<double>& 
   Eigen::MatrixXd normal_matrix;
   Eigen::VectorXd rhs;
   Columns last_columns;
+  const int threads = ResolveThreads(options.threads);
   for (int iteration = 0; iteration < 30; ++iteration) {
     std::fill(seen.begin(), seen.end(), 0);
     std::fill(panels_seen.begin(), panels_seen.end(), 0);
@@ -335,35 +337,44 @@ JointFit FitJointly(std::vector<PanelPoint>& points, const std::vector<double>& 
     };
 
     // Reassign every candidate to its nearest laser plane; gate at 5 robust sigmas.
+    std::vector<double> abs_residual(points.size(), -1.0);
+    ParallelFor(points.size(), threads, [&](size_t begin, size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        const PanelPoint& p = points[i];
+        if (p.laser >= 0)
+          abs_residual[i] = std::abs(lhs_of(p, point_time[i]) - fit.c[p.laser] / scale);
+      }
+    });
     std::vector<double> inlier_abs;
-    for (size_t i = 0; i < points.size(); ++i) {
-      const PanelPoint& p = points[i];
-      if (p.laser < 0) continue;
-      inlier_abs.push_back(std::abs(lhs_of(p, point_time[i]) - fit.c[p.laser] / scale));
-    }
+    for (const double r : abs_residual)
+      if (r >= 0) inlier_abs.push_back(r);
     const double sigma = 1.4826 * Median(inlier_abs);
     // The first pass keeps the wide gate, so a laser no panel showed as a line (placed at
     // the nominal spacing) can gather its points before the gate closes in.
     const double new_gate = iteration == 0
                                 ? options.gate_mm
                                 : std::clamp(5.0 * sigma, options.min_gate_mm, options.gate_mm);
-    bool changed = false;
-    for (size_t i = 0; i < points.size(); ++i) {
-      PanelPoint& p = points[i];
-      const double lhs = lhs_of(p, point_time[i]);
-      int best_laser = -1;
-      double best = new_gate;
-      for (int k = 0; k < lasers; ++k) {
-        const double r = lhs - fit.c[k] / scale;
-        if (std::abs(r) < best) {
-          best = std::abs(r);
-          best_laser = k;
-          p.residual_mm = r;
+    std::atomic<bool> changed{false};
+    ParallelFor(points.size(), threads, [&](size_t begin, size_t end) {
+      bool changed_here = false;
+      for (size_t i = begin; i < end; ++i) {
+        PanelPoint& p = points[i];
+        const double lhs = lhs_of(p, point_time[i]);
+        int best_laser = -1;
+        double best = new_gate;
+        for (int k = 0; k < lasers; ++k) {
+          const double r = lhs - fit.c[k] / scale;
+          if (std::abs(r) < best) {
+            best = std::abs(r);
+            best_laser = k;
+            p.residual_mm = r;
+          }
         }
+        changed_here |= best_laser != p.laser;
+        p.laser = best_laser;
       }
-      changed |= best_laser != p.laser;
-      p.laser = best_laser;
-    }
+      if (changed_here) changed = true;
+    });
     const bool converged =
         iteration > 0 && !changed && std::abs(new_gate - gate) < 1e-3 && delta_change < 1e-4;
     gate = new_gate;
