@@ -157,11 +157,15 @@ struct ReconstructOptions {
   // the air between them) is dropped when it lies further than surface_check_max_mm from
   // the plane of the confident points within surface_check_radius_mm, and by more than 3
   // times that plane's RMS (at an edge or a fold the plane says nothing); or when only the
-  // column count or the label vote decided it and no confident point is near.
+  // column count or the label vote decided it and no confident point is near. It also
+  // judges the outlier test's points, which it keeps only within surface_check_outlier_mm
+  // of that plane (or 3 times its RMS) and with confident points near; without the check
+  // the outlier test drops them all.
   bool surface_check = true;
   double surface_check_confidence = 0.15;
   double surface_check_radius_mm = 12.0;
   double surface_check_max_mm = 3.0;
+  double surface_check_outlier_mm = 1.0;
   // Optional ICP refinement of mirror views and the lower camera against the rest
   // (reported; off by default).
   bool icp = false;
@@ -226,7 +230,7 @@ struct ReconstructSummary {
   size_t dropped_flat_angle = 0;    // ray too flat to the laser plane
   size_t dropped_other_camera = 0;  // another camera sees the place at a better angle
   size_t dropped_stripe_end = 0;
-  size_t dropped_outlier = 0;
+  size_t dropped_outlier = 0;  // off its (column, frame) neighbours and not on the surface
   size_t dropped_low_confidence = 0;
   size_t dropped_off_surface = 0;  // a weak point the confident ones around it do not carry
   size_t double_bounce = 0;        // triangulated through both mirrors
