@@ -1566,8 +1566,8 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
       });
       // A suspect needs the surface's word: isolated phantoms have none.
       if (n < kMinNeighbours) {
-        drop[i] = suspect[i] ||
-                  cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
+        drop[i] =
+            suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
         continue;
       }
       const Eigen::Vector3d mean = sum / n;

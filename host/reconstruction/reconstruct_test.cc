@@ -350,8 +350,8 @@ TEST(Reconstruct, TheTorsosBackInTheMirrorsKeepsItsLaser) {
   const Score score = ScoreAgainstTruth(sweep, r.cloud);
   // The back: the upper camera's mirror views, behind the torso's axis.
   const auto on_back = [](const TruthPeak& t) {
-    return t.camera == 0 && t.view != virtual_cabinet::View::kCenter &&
-           t.point_in_world.y() > 0 && t.point_in_world.head<2>().norm() < 250;
+    return t.camera == 0 && t.view != virtual_cabinet::View::kCenter && t.point_in_world.y() > 0 &&
+           t.point_in_world.head<2>().norm() < 250;
   };
   size_t back = 0, back_found = 0;
   for (const auto& [key, column] : sweep.truth)
@@ -362,10 +362,11 @@ TEST(Reconstruct, TheTorsosBackInTheMirrorsKeepsItsLaser) {
         static_cast<int>(t->view) == static_cast<int>(p.view))
       ++back_found;
   }
-  std::printf("%zu points, %zu wrong, %zu of %zu truth (%zu reconstructable); the back: %zu of "
-              "%zu\n%s",
-              score.points, score.wrong, score.found_right, sweep.truth_points,
-              sweep.truth_reconstructable, back_found, back, SummaryText(r.summary).c_str());
+  std::printf(
+      "%zu points, %zu wrong, %zu of %zu truth (%zu reconstructable); the back: %zu of "
+      "%zu\n%s",
+      score.points, score.wrong, score.found_right, sweep.truth_points, sweep.truth_reconstructable,
+      back_found, back, SummaryText(r.summary).c_str());
   EXPECT_LE(score.wrong, score.points * 0.0005);
   // 17,637 of the back's 24,009 truth points and 99,001 of the 101,365 reconstructable. Planted:
   // the volume not walking the mirrors' rays 17,248 and 98,612; the column count not checked
