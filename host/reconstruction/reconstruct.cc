@@ -1154,32 +1154,41 @@ void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_coun
             members[n++] = j;
           }
           if (n != laser_count) continue;
-          // Rows ascend within a column: the first is the highest laser. A peak of the column
-          // decided already with another laser than its row's says the count is not the
-          // lasers (an arm in front of a mirror stands in for a mirror's stripe).
+          // Rows ascend within a column: the first is the highest laser, and every row is
+          // the same view (a mirror keeps up and down). A peak of the column decided already
+          // with another laser or view, or rows whose lasers only other views have, say the
+          // count is not the lasers: an arm in front of a mirror stands in for one of the
+          // mirror's stripes.
+          std::array<int, kMaxLasers> pick{};
+          int view = -1;
           bool agrees = true;
-          for (int r = 0; r < n; ++r) {
+          for (int r = 0; r < n && agrees; ++r) {
             const PeakState& p = table->peaks[members[r]];
-            if (p.chosen >= 0 &&
-                hyp[p.first_hypothesis + p.chosen].key % kMaxLasers != laser_count - 1 - r)
+            const int laser = laser_count - 1 - r;
+            int count = 0;
+            pick[r] = -1;
+            for (int h = 0; h < p.hypotheses; ++h) {
+              if (hyp[p.first_hypothesis + h].key % kMaxLasers == laser) {
+                pick[r] = h;
+                ++count;
+              }
+            }
+            if (p.chosen >= 0) {
+              pick[r] = p.chosen;
+              count = 1;
+            }
+            if (count != 1) continue;
+            const int key = hyp[p.first_hypothesis + pick[r]].key;
+            if (key % kMaxLasers != laser || (view >= 0 && key / kMaxLasers != view))
               agrees = false;
+            view = key / kMaxLasers;
           }
           if (!agrees) continue;
           for (int r = 0; r < n; ++r) {
             PeakState& p = table->peaks[members[r]];
-            if (p.rule != Rule::kNone) continue;
-            const int laser = laser_count - 1 - r;
-            int found = -1, count = 0;
-            for (int h = 0; h < p.hypotheses; ++h) {
-              if (hyp[p.first_hypothesis + h].key % kMaxLasers == laser) {
-                found = h;
-                ++count;
-              }
-            }
-            if (count == 1) {
-              p.chosen = static_cast<int16_t>(found);
-              p.rule = Rule::kColumnCount;
-            }
+            if (p.rule != Rule::kNone || pick[r] < 0) continue;
+            p.chosen = static_cast<int16_t>(pick[r]);
+            p.rule = Rule::kColumnCount;
           }
         }
         i = run_end;
