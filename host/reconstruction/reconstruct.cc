@@ -1177,7 +1177,10 @@ void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_coun
               pick[r] = p.chosen;
               count = 1;
             }
-            if (count != 1) continue;
+            if (count != 1) {
+              pick[r] = -1;  // several views have this laser: the row decides nothing
+              continue;
+            }
             const int key = hyp[p.first_hypothesis + pick[r]].key;
             if (key % kMaxLasers != laser || (view >= 0 && key / kMaxLasers != view))
               agrees = false;
