@@ -52,8 +52,7 @@ TEST(ReconstructCli, WritesThePlyAndTheSummary) {
       summary["dropped"]["ambiguous"].get<size_t>() + summary["dropped"]["conflict"].get<size_t>(),
       summary["points"].get<size_t>() / 30)
       << summary.dump(2);
-  std::ifstream ply(d / "points.ply", std::ios::binary);
-  std::string header((std::istreambuf_iterator<char>(ply)), {});
+  std::string header = test_support::ReadFile(d / "points.ply");
   header.resize(header.find("end_header"));
   EXPECT_NE(header.find("format binary_little_endian 1.0"), std::string::npos);
   EXPECT_NE(header.find("element vertex " + std::to_string(summary["points"].get<size_t>())),
@@ -116,8 +115,7 @@ TEST(ReconstructCli, EmptyTruncatedAndMissingCamera) {
   EXPECT_NE(empty.err.find("mirrorscan: no readable header"), std::string::npos) << empty.err;
 
   // Cut in the middle of a frame record: the frames before it are used, and that is said.
-  std::ifstream in(d / "scan.mscan", std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  const std::string bytes = test_support::ReadFile(d / "scan.mscan");
   std::ofstream(d / "cut.mscan", std::ios::binary) << bytes.substr(0, bytes.size() * 3 / 5);
   const Result cut = RunMirrorscan("reconstruct " + (d / "cut.mscan").string() + calibration +
                                        " --out " + (d / "cut.ply").string() + " --json",
@@ -141,6 +139,24 @@ TEST(ReconstructCli, EmptyTruncatedAndMissingCamera) {
   EXPECT_EQ(missing.exit_code, 1);
   EXPECT_NE(missing.err.find("camera \"lower\" is not in the calibration"), std::string::npos)
       << missing.err;
+}
+
+// A value the reconstruction cannot use is refused with one line naming the option, never
+// taken for "not given" and replaced by the default.
+TEST(ReconstructCli, BadOptionValuesAreRefused) {
+  const fs::path& d = Sweep();
+  const std::string base = "reconstruct " + (d / "scan.mscan").string() + " --calibration " +
+                           (d / "sim/calibration.json").string() + " --out " +
+                           (d / "bad.ply").string();
+  for (const std::string option :
+       {"--cylinder-radius -5", "--cylinder-radius 0", "--cylinder-core-radius -1",
+        "--min-angle 95", "--stereo-max-mm -1", "--prefer-camera -2"}) {
+    const Result r = RunMirrorscan(base + " " + option, d);
+    EXPECT_NE(r.exit_code, 0) << option;
+    const std::string name = option.substr(0, option.find(' '));
+    EXPECT_NE(r.err.find(name), std::string::npos) << option << ": " << r.err;
+    EXPECT_FALSE(fs::exists(d / "bad.ply")) << option;
+  }
 }
 
 }  // namespace

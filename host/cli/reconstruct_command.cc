@@ -114,14 +114,17 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--board", o->board, "board.json whose reconstruction.bounding_cylinder to use")
       ->check(CLI::ExistingFile);
   cmd->add_option("--cylinder-radius", o->radius_mm,
-                  "Bounding cylinder radius, mm: no point beyond it (default 650)");
+                  "Bounding cylinder radius, mm: no point beyond it (default 650)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--cylinder-core-radius", o->core_radius_mm,
-                  "Its core, mm: one hypothesis there decides a peak alone (default 450)");
+                  "Its core, mm: one hypothesis there decides a peak alone (default 450)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 20)");
   cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
   cmd->add_option("--min-angle", o->min_angle_deg,
                   "Drop points whose ray meets the laser plane flatter than this, degrees "
-                  "(default 5)");
+                  "(default 5)")
+      ->check(CLI::Range(0.0, 89.0));
   cmd->add_flag("--calibration-mismatch-ok", o->mismatch_ok,
                 "Use the calibration even if the archive was made with another one");
   cmd->add_flag("--readback", o->readback,
@@ -135,11 +138,13 @@ void AddReconstructCommand(CLI::App& app) {
                 "Drop the last 2 columns of every stripe (they only get a low confidence)");
   cmd->add_option("--prefer-camera", o->prefer_camera,
                   "Drop a camera's points where another meets the laser planes this many times "
-                  "more squarely (default 0: keep every camera's)");
+                  "more squarely (default 0: keep every camera's)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--no-stereo", o->no_stereo,
                 "Do not decide laser and view by what the other camera sees");
   cmd->add_option("--stereo-max-mm", o->stereo_max_mm,
-                  "How near another camera's point of the same laser must be, mm (default 3)");
+                  "How near another camera's point of the same laser must be, mm (default 3)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--min-confidence", o->min_confidence,
                   "Drop points whose confidence is below this (default 0: keep all)")
       ->check(CLI::Range(0.0, 1.0));
