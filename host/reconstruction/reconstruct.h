@@ -159,8 +159,8 @@ struct ReconstructOptions {
   // times that plane's RMS (at an edge or a fold the plane says nothing); or when only the
   // column count or the label vote decided it and no confident point is near. It also
   // judges the outlier test's points, which it keeps only within surface_check_outlier_mm
-  // of that plane (or 3 times its RMS) and with confident points near; without the check
-  // the outlier test drops them all.
+  // of that plane (no RMS allowance) and with at least 6 confident points within the
+  // radius; without the check the outlier test drops them all.
   bool surface_check = true;
   double surface_check_confidence = 0.15;
   double surface_check_radius_mm = 12.0;
