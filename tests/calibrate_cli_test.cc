@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "host/calibration/intrinsics.h"
+#include "common/config/json_reader.h"
 #include "tests/support/process.h"
 
 namespace mirrorscan {
@@ -20,11 +21,6 @@ namespace fs = std::filesystem;
 
 using Result = test_support::CommandResult;
 using test_support::RunMirrorscan;
-
-nlohmann::json ReadJson(const fs::path& file) {
-  std::ifstream in(file);
-  return nlohmann::json::parse(in);
-}
 
 const fs::path kSamples = "/usr/share/doc/opencv-doc/examples/data";
 
@@ -45,7 +41,7 @@ TEST(CalibrateCli, IntrinsicsOfOpenCvSamples) {
   EXPECT_NE(r.out.find("[13/13]"), std::string::npos) << r.out;  // progress
   // Against the intrinsics OpenCV ships beside the images (left_intrinsics.yml: fx = fy =
   // 535.9, cx 342.3, cy 235.6, RMS 0.39 px, fixed aspect ratio).
-  const nlohmann::json json = ReadJson(dir / "intrinsics.json");
+  const nlohmann::json json = JsonReader::ParseFile(dir / "intrinsics.json");
   EXPECT_NEAR(json["camera_matrix"][0][0].get<double>(), 535.9, 0.01 * 535.9);
   EXPECT_NEAR(json["camera_matrix"][1][1].get<double>(), 535.9, 0.01 * 535.9);
   EXPECT_NEAR(json["camera_matrix"][0][2].get<double>(), 342.3, 3.0);
@@ -91,7 +87,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
                                  " --out " + (dir / "lasers.json").string() +
                                  " --calibration-out " + (dir / "fitted.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const nlohmann::json lasers = ReadJson(dir / "lasers.json");
+  const nlohmann::json lasers = JsonReader::ParseFile(dir / "lasers.json");
   ASSERT_EQ(lasers["frames"].size(), 30u);  // 15 instants, 2 cameras
   for (const nlohmann::json& frame : lasers["frames"]) {
     const double t = frame["time_s"].get<double>();
@@ -103,7 +99,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   EXPECT_LT(lasers["residual_rms_mm"].get<double>(), 0.1);
   EXPECT_LT(lasers["residual_max_mm"].get<double>(), 0.5);
   EXPECT_TRUE(lasers["warnings"].empty()) << lasers["warnings"];
-  const nlohmann::json fitted = ReadJson(dir / "fitted.json");
+  const nlohmann::json fitted = JsonReader::ParseFile(dir / "fitted.json");
   EXPECT_NEAR(fitted["lasers"]["speed_mm_s"].get<double>(), 2400.0, 0.1);
   // The measured laser offsets, and the readback offset (the sim's readback is laser 0).
   ASSERT_EQ(fitted["lasers"]["offsets_mm"].size(), 3u);
@@ -124,7 +120,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
 
   // The calibration says the panels stand 9 mm back; they stand 6: a clear failure, the
   // measurement in lasers.json, no calibration written.
-  nlohmann::json moved = ReadJson(dir / "calibration.json");
+  nlohmann::json moved = JsonReader::ParseFile(dir / "calibration.json");
   for (auto& mirror : moved["mirrors"]) mirror["panel_offset_mm"] = 9.0;
   moved.erase("content_hash");
   std::ofstream(dir / "moved.json") << moved.dump();
@@ -143,13 +139,13 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   EXPECT_NE(off.out.find("FAIL: right panel"), std::string::npos) << off.out;
   EXPECT_NE(off.out.find("no calibration written"), std::string::npos) << off.out;
   EXPECT_FALSE(fs::exists(dir / "moved-fitted.json"));
-  const nlohmann::json moved_lasers = ReadJson(dir / "moved-lasers.json");
+  const nlohmann::json moved_lasers = JsonReader::ParseFile(dir / "moved-lasers.json");
   EXPECT_FALSE(moved_lasers["ok"].get<bool>());
   EXPECT_EQ(moved_lasers["failures"].size(), 2u);
   EXPECT_NEAR(moved_lasers["panel_offsets"][0]["measured_mm"].get<double>(), 6.0, 0.1);
 
   // A calibration whose mirrors have no corners cannot say where the panels are.
-  nlohmann::json calibration = ReadJson(dir / "calibration.json");
+  nlohmann::json calibration = JsonReader::ParseFile(dir / "calibration.json");
   for (auto& mirror : calibration["mirrors"]) mirror.erase("corners_mm");
   calibration.erase("content_hash");  // edited by hand: no hash to check
   std::ofstream(dir / "no_corners.json") << calibration.dump();

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/config/json_reader.h"
 #include "tests/support/process.h"
 
 namespace mirrorscan {
@@ -18,10 +19,6 @@ namespace fs = std::filesystem;
 using Result = test_support::CommandResult;
 using test_support::RunMirrorscan;
 using test_support::VirtualScene;
-
-nlohmann::json ReadJson(const fs::path& path) {
-  return nlohmann::json::parse(test_support::ReadFile(path));
-}
 
 const nlohmann::json& Find(const nlohmann::json& measurements, const std::string& name) {
   for (const nlohmann::json& m : measurements.at("measurements")) {
@@ -36,14 +33,14 @@ TEST(MeasureCliTest, MannequinAgainstTheSimsTruth) {
   Result r = RunMirrorscan("sim subject --scene " + VirtualScene("mannequin") + " --out " +
                            mesh.string() + " --truth " + truth_file.string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const nlohmann::json truth = ReadJson(truth_file).at("truth");
+  const nlohmann::json truth = JsonReader::ParseFile(truth_file).at("truth");
   r = test_support::RunCommand(std::string(MIRRORSCAN_BIN_DIR) + "/mirrorscan measure " +
                                    mesh.string() + " --out " + (dir / "m.json").string() +
                                    " --csv " + (dir / "m.csv").string() + " --preview " +
                                    (dir / "m.png").string() + " --girth-at 1000,500 --json",
                                dir / "err.txt");
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  const nlohmann::json written = ReadJson(dir / "m.json");
+  const nlohmann::json written = JsonReader::ParseFile(dir / "m.json");
   EXPECT_EQ(nlohmann::json::parse(r.out), written);  // --json prints what --out holds
   EXPECT_NEAR(written.at("stature_mm").get<double>(), truth.at("stature_mm").get<double>(), 2.0);
   for (const char* girth : {"chest", "waist", "hip", "neck"}) {
@@ -75,7 +72,7 @@ TEST(MeasureCliTest, MannequinAgainstTheSimsTruth) {
   r = RunMirrorscan("measure " + (dir / "mannequin.stl").string() + " --out " +
                     (dir / "stl.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  const nlohmann::json stl = ReadJson(dir / "stl.json");
+  const nlohmann::json stl = JsonReader::ParseFile(dir / "stl.json");
   EXPECT_NEAR(Find(stl, "waist_girth").at("value_mm").get<double>(),
               truth.at("waist_girth_mm").get<double>(), 3.0);
   fs::remove_all(dir);
@@ -91,7 +88,7 @@ TEST(MeasureCliTest, CylinderIsWithheldWithTheReason) {
       RunMirrorscan("measure " + (dir / "c.ply").string() + " --out " + (dir / "c.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.out;
   EXPECT_NE(r.out.find("withheld: not a human body"), std::string::npos) << r.out;
-  const nlohmann::json json = ReadJson(dir / "c.json");
+  const nlohmann::json json = JsonReader::ParseFile(dir / "c.json");
   EXPECT_TRUE(json.at("stature_mm").is_null());
   for (const nlohmann::json& m : json.at("measurements")) {
     EXPECT_TRUE(m.at("value_mm").is_null()) << m.at("name");
