@@ -16,7 +16,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -27,9 +26,9 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include "firmware/hal/replay/replay_camera.h"
 #include "firmware/hal/virtual/virtual_monostable.h"
 #include "tests/support/process.h"
+#include "tests/support/virtual_board.h"
 
 namespace mirrorscan {
 namespace {
@@ -156,34 +155,7 @@ class DeviceHostileTest : public ::testing::Test {
   // The virtual board (token for reads: the shipped default) with a `sweep_mm` sweep and
   // replay cameras (a 160 x 120 stripe) unless `render`.
   fs::path WriteBoard(double sweep_mm, bool render = false) {
-    json board;
-    std::ifstream(kSource / "boards" / "virtual" / "board.json") >> board;
-    board["scan"]["sweep_start_mm"] = 200;
-    board["scan"]["sweep_end_mm"] = 200 + sweep_mm;
-    board["virtual"]["scene"] =
-        (kSource / "boards" / "virtual" / "scenes" / "mannequin.json").string();
-    if (!render) {
-      for (int c = 0; c < 2; ++c) {
-        const fs::path frames = dir_ / ("frames" + std::to_string(c));
-        fs::create_directories(frames);
-        std::vector<uint8_t> pixels(160 * 120);
-        for (int v = 0; v < 120; ++v) {
-          const double d = (v - 60.0) / 1.2;
-          std::fill_n(pixels.begin() + v * 160, 160,
-                      static_cast<uint8_t>(20 + 180 * std::exp(-0.5 * d * d)));
-        }
-        hal::WritePgm(frames / "0.pgm", 160, 120, pixels.data());
-        auto& camera = board["cameras"][c];
-        camera.erase("id");
-        camera["backend"] = "replay";
-        camera["path"] = frames.string();
-        camera["width"] = 160;
-        camera["height"] = 120;
-      }
-    }
-    const fs::path file = dir_ / "board.json";
-    std::ofstream(file) << board.dump(2);
-    return file;
+    return test_support::WriteVirtualBoard(dir_, 200 + sweep_mm, !render);
   }
   std::vector<std::string> Args(const fs::path& board) const {
     return {"--board",      board.string(), "--data-dir",

@@ -14,7 +14,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -30,11 +29,11 @@
 #include "common/scan_format/scan_format.h"
 #include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
-#include "firmware/hal/replay/replay_camera.h"
 #include "firmware/hal/virtual/virtual_line_states.h"
 #include "firmware/store/scan_store.h"
 #include "tests/support/process.h"
 #include "tests/support/scene_truth.h"
+#include "tests/support/virtual_board.h"
 
 namespace mirrorscan {
 namespace {
@@ -67,34 +66,7 @@ class MirrorscandTest : public ::testing::Test {
   // The virtual board with a 300 mm sweep (2 s) and, if `replay`, replay cameras playing a
   // 160 x 120 stripe instead of the renderer.
   fs::path WriteBoard(bool replay, double sweep_end_mm = 500.0) {
-    nlohmann::json board;
-    std::ifstream(kSource / "boards" / "virtual" / "board.json") >> board;
-    board["scan"]["sweep_start_mm"] = 200;
-    board["scan"]["sweep_end_mm"] = sweep_end_mm;
-    board["virtual"]["scene"] =
-        (kSource / "boards" / "virtual" / "scenes" / "mannequin.json").string();
-    if (replay) {
-      for (int c = 0; c < 2; ++c) {
-        const fs::path frames = dir_ / ("frames" + std::to_string(c));
-        fs::create_directories(frames);
-        std::vector<uint8_t> pixels(160 * 120);
-        for (int v = 0; v < 120; ++v) {
-          const double d = (v - 60.0) / 1.2;
-          std::fill_n(pixels.begin() + v * 160, 160,
-                      static_cast<uint8_t>(20 + 180 * std::exp(-0.5 * d * d)));
-        }
-        hal::WritePgm(frames / "0.pgm", 160, 120, pixels.data());
-        auto& camera = board["cameras"][c];
-        camera.erase("id");
-        camera["backend"] = "replay";
-        camera["path"] = frames.string();
-        camera["width"] = 160;
-        camera["height"] = 120;
-      }
-    }
-    const fs::path file = dir_ / "board.json";
-    std::ofstream(file) << board.dump(2);
-    return file;
+    return test_support::WriteVirtualBoard(dir_, sweep_end_mm, replay);
   }
   std::vector<std::string> Args(const fs::path& board) {
     // Port 0: the device API takes any free port, so parallel tests never collide.
