@@ -14,7 +14,6 @@
 #include <atomic>
 #include <chrono>
 #include <cstring>
-#include <fstream>
 #include <mutex>
 #include <regex>
 #include <sstream>
@@ -25,9 +24,9 @@
 #include <httplib.h>
 #include <nlohmann/json.hpp>
 
-#include "firmware/hal/replay/replay_camera.h"
 #include "firmware/hal/virtual/virtual_monostable.h"
 #include "tests/support/process.h"
+#include "tests/support/virtual_board.h"
 
 namespace mirrorscan {
 namespace {
@@ -45,24 +44,8 @@ int64_t NowNs() { return Clock::now().time_since_epoch().count(); }
 TEST(WatchdogTest, PingsStopWhenTheControlLoopHangsAndTheLasersAreDarkByThen) {
   const fs::path dir = test_support::FreshTempDir("mirrorscand_watchdog_test");
   // The virtual board with replay cameras (a stripe; no rendering) and a long sweep.
-  json board = json::parse(test_support::ReadFile(kSource / "boards/virtual/board.json"));
-  board["scan"]["sweep_start_mm"] = 200;
-  board["scan"]["sweep_end_mm"] = 1400;
-  board["virtual"]["scene"] = (kSource / "boards/virtual/scenes/mannequin.json").string();
-  for (int c = 0; c < 2; ++c) {
-    const fs::path frames = dir / ("frames" + std::to_string(c));
-    fs::create_directories(frames);
-    std::vector<uint8_t> pixels(160 * 120, 20);
-    for (int u = 0; u < 160; ++u) pixels[60 * 160 + u] = 200;
-    hal::WritePgm(frames / "0.pgm", 160, 120, pixels.data());
-    auto& camera = board["cameras"][c];
-    camera.erase("id");
-    camera["backend"] = "replay";
-    camera["path"] = frames.string();
-    camera["width"] = 160;
-    camera["height"] = 120;
-  }
-  std::ofstream(dir / "board.json") << board.dump(2);
+  const fs::path board_file = test_support::WriteVirtualBoard(dir, 1400, /*replay=*/true);
+  const json board = json::parse(test_support::ReadFile(board_file));
 
   const fs::path socket_path = dir / "notify";
   const int fd = ::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -106,7 +89,7 @@ TEST(WatchdogTest, PingsStopWhenTheControlLoopHangsAndTheLasersAreDarkByThen) {
   options.env = {{"NOTIFY_SOCKET", socket_path.string()}, {"WATCHDOG_USEC", "1000000"}};
   test_support::ChildProcess daemon(
       MIRRORSCAND_PATH,
-      {"--board", (dir / "board.json").string(), "--data-dir", (dir / "data").string(), "--listen",
+      {"--board", board_file.string(), "--data-dir", (dir / "data").string(), "--listen",
        "127.0.0.1:" + std::to_string(port), "--interlock-state", (dir / "interlock").string(),
        "--watchdog-hang-hook"},
       dir / "daemon.log", options);
