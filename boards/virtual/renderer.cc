@@ -346,7 +346,9 @@ double Renderer::Albedo(const RayHit& hit, double footprint_mm) const {
     case Material::kPanel:
       return scene_.panels[0].albedo;
     case Material::kSubject:
-      return scene_.subject_albedo;
+      return scene_.subject.triangle_albedo.empty()
+                 ? scene_.subject_albedo
+                 : scene_.subject.triangle_albedo.at(hit.triangle);
     case Material::kTarget: {
       const auto a = scene_.target->AlbedoArea(hit.point, footprint_mm);
       return a ? *a : 0.85;

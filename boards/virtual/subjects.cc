@@ -441,7 +441,8 @@ Subject MakeNoSubject() {
   return {
       "none",
       {},
-      {{"type", "none"}, {"params", nlohmann::json::object()}, {"parts", nlohmann::json::array()}}};
+      {{"type", "none"}, {"params", nlohmann::json::object()}, {"parts", nlohmann::json::array()}},
+      {}};
 }
 
 Subject MakeCuboidOnTripod(const CuboidParams& p) {
@@ -450,7 +451,7 @@ Subject MakeCuboidOnTripod(const CuboidParams& p) {
   Require(underside >= 300.0, "cuboid: the tripod needs the underside at least 300 mm up");
   const Eigen::Affine3d world_from_body = YawAbout(p.center_mm, p.yaw_deg);
 
-  Subject subject{"cuboid", {}, {}};
+  Subject subject{"cuboid", {}, {}, {}};
   nlohmann::json& meta = subject.metadata;
   meta["type"] = "cuboid";
   meta["params"] = {
@@ -509,7 +510,7 @@ Subject MakeCylinder(const CylinderParams& p) {
     rings[0][j] = Eigen::Vector3d(x, y, p.bottom_mm);
     rings[1][j] = Eigen::Vector3d(x, y, top);
   }
-  Subject subject{"cylinder", {}, {}};
+  Subject subject{"cylinder", {}, {}, {}};
   subject.metadata = {{"type", "cylinder"},
                       {"params",
                        {{"radius_mm", p.radius_mm},
@@ -566,7 +567,7 @@ Subject MakeMannequin(const MannequinParams& p) {
                                 kNeckRadius * h, kSegments)});
   parts.push_back({"head", MakeHead(h)});
 
-  Subject subject{"mannequin", {}, {}};
+  Subject subject{"mannequin", {}, {}, {}};
   nlohmann::json& meta = subject.metadata;
   meta["type"] = "mannequin";
   meta["params"] = {{"height_mm", p.height_mm},           {"chest_girth_mm", p.chest_girth_mm},
@@ -661,7 +662,7 @@ std::optional<GirthTruth> MannequinGirthTruth(const MannequinParams& p, double z
 
 Subject LoadMeshSubject(const MeshParams& p) {
   Require(p.scale > 0.0, "mesh: scale must be positive");
-  Subject subject{"mesh", {}, {}};
+  Subject subject{"mesh", {}, {}, {}};
   try {
     subject.mesh = ReadMeshFile(p.path);
   } catch (const MeshIoError& e) {
@@ -689,7 +690,8 @@ Subject LoadMeshSubject(const MeshParams& p) {
 }
 
 Subject ParseSubject(const JsonReader& json, const std::filesystem::path& base_dir) {
-  const std::string type = json.Choice("type", {"cuboid", "cylinder", "mannequin", "mesh", "none"});
+  const std::string type =
+      json.Choice("type", {"cuboid", "cylinder", "mannequin", "body", "mesh", "none"});
   auto vector3 = [&json](const char* key, const Eigen::Vector3d& fallback) {
     const std::vector<double> v =
         json.Numbers(key, 3, std::vector<double>{fallback.x(), fallback.y(), fallback.z()});
@@ -749,6 +751,73 @@ Subject ParseSubject(const JsonReader& json, const std::filesystem::path& base_d
                               ": the arms cannot hang clear of the torso");
     }
     return MakeMannequin(p);
+  }
+  if (type == "body") {
+    json.AllowOnly({"type",
+                    "sex",
+                    "stature_mm",
+                    "chest_girth_mm",
+                    "underbust_girth_mm",
+                    "waist_girth_mm",
+                    "hip_girth_mm",
+                    "thigh_girth_mm",
+                    "upper_arm_girth_mm",
+                    "neck_girth_mm",
+                    "shoulder_breadth_mm",
+                    "leg_length_mm",
+                    "belly",
+                    "bust",
+                    "arm_abduction_deg",
+                    "elbow_bend_deg",
+                    "feet_apart_mm",
+                    "yaw_deg",
+                    "lean_deg",
+                    "head_turn_deg",
+                    "hands",
+                    "center_mm",
+                    "skin_albedo",
+                    "hair_albedo",
+                    "underwear_albedo",
+                    "cell_mm",
+                    "name"});
+    BodyParams p;
+    p.sex = json.Choice("sex", {"male", "female"}, p.sex);
+    p.hands = json.Choice("hands", {"fist", "open"}, p.hands);
+    auto number = [&json](const char* key, double& value) { value = json.Number(key, value); };
+    number("stature_mm", p.stature_mm);
+    number("chest_girth_mm", p.chest_girth_mm);
+    number("underbust_girth_mm", p.underbust_girth_mm);
+    number("waist_girth_mm", p.waist_girth_mm);
+    number("hip_girth_mm", p.hip_girth_mm);
+    number("thigh_girth_mm", p.thigh_girth_mm);
+    number("upper_arm_girth_mm", p.upper_arm_girth_mm);
+    number("neck_girth_mm", p.neck_girth_mm);
+    number("shoulder_breadth_mm", p.shoulder_breadth_mm);
+    number("leg_length_mm", p.leg_length_mm);
+    number("belly", p.belly);
+    number("bust", p.bust);
+    number("arm_abduction_deg", p.arm_abduction_deg);
+    number("elbow_bend_deg", p.elbow_bend_deg);
+    number("feet_apart_mm", p.feet_apart_mm);
+    number("yaw_deg", p.yaw_deg);
+    number("lean_deg", p.lean_deg);
+    number("head_turn_deg", p.head_turn_deg);
+    number("skin_albedo", p.skin_albedo);
+    number("hair_albedo", p.hair_albedo);
+    number("underwear_albedo", p.underwear_albedo);
+    p.center_mm = vector2("center_mm", p.center_mm);
+    const double cell = json.Number("cell_mm", 4.0, 2.0, 10.0);
+    if (json.Has("name")) json.String("name");
+    try {
+      p.Validate();
+    } catch (const std::invalid_argument& e) {
+      const std::string message = e.what();
+      const size_t colon = message.find(':');
+      json.Fail(message.substr(0, colon), message.substr(colon + 2));
+    }
+    Subject subject = MakeBody(p, cell);
+    if (json.Has("name")) subject.metadata["name"] = json.String("name");
+    return subject;
   }
   // type == "mesh"
   json.AllowOnly({"type", "path", "scale", "translation_mm", "rotation_deg"});

@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include "boards/virtual/body_model.h"
 #include "boards/virtual/mesh.h"
 #include "common/config/json_reader.h"
 
@@ -19,9 +20,11 @@ namespace mirrorscan::virtual_cabinet {
 // "parts": [{"name", "first_triangle", "triangle_count"}], the contiguous triangle ranges
 // of the separately closed parts, so a renderer can tell e.g. the cuboid from its tripod.
 struct Subject {
-  std::string type;  // "cuboid", "cylinder", "mannequin", "mesh" or "none"
+  std::string type;  // "cuboid", "cylinder", "mannequin", "body", "mesh" or "none"
   TriangleMesh mesh;
   nlohmann::json metadata;
+  // Per triangle (a body's skin, hair and underwear); empty: the scene's subject albedo.
+  std::vector<float> triangle_albedo;
 };
 
 // The paper's test body (227.7 x 206.6 x 316.8 mm) on a tripod: three splayed legs
@@ -81,6 +84,7 @@ struct MeshParams {
 //   {"type": "cylinder", "radius_mm": r, "height_mm": h, "bottom_mm": z, "center_mm": [x, y]}
 //   {"type": "mannequin", "height_mm": h, "chest_girth_mm": c, "waist_girth_mm": w,
 //    "hip_girth_mm": p, "center_mm": [x, y], "yaw_deg": a, "arm_angle_deg": g}
+//   {"type": "body", ...BodyParams' keys (body_model.h)..., "cell_mm": c}
 //   {"type": "mesh", "path": p, "scale": s, "translation_mm": [x, y, z],
 //    "rotation_deg": [rx, ry, rz]}
 //   {"type": "none"}
