@@ -636,17 +636,27 @@ void BodyField::Impl::Solve(int rounds) {
           Target{"waist_girth_mm", &waist_scale, 2, p.waist_girth_mm},
           Target{"underbust_girth_mm", &underbust_scale, 3, p.underbust_girth_mm},
           Target{"chest_girth_mm", &chest_scale, 4, p.chest_girth_mm}}) {
-      *target.scale = SolveScale(
-          target.name,
-          [&](double scale) {
-            *target.scale = scale;
-            Build();
-            const double z = stations[target.station].z;
-            return OutlinePerimeter(Vector3d(0, section_c(z), z), ex, ey, 0.5 * target.girth,
-                                    kAll) -
-                   target.girth;
-          },
-          *target.scale);
+      // Arms held close may touch the torso at the station; then the girth is the
+      // torso's alone (the truth withholds a merged section).
+      for (const unsigned groups : {unsigned{kAll}, unsigned{kAll & ~(kLeftArm | kRightArm)}}) {
+        try {
+          *target.scale = SolveScale(
+              target.name,
+              [&](double scale) {
+                *target.scale = scale;
+                Build();
+                const double z = stations[target.station].z;
+                return OutlinePerimeter(Vector3d(0, section_c(z), z), ex, ey,
+                                        0.5 * target.girth, groups) -
+                       target.girth;
+              },
+              *target.scale);
+          break;
+        } catch (const std::invalid_argument&) {
+          if (groups != kAll) throw;
+          *target.scale = 1.0;
+        }
+      }
     }
     arm_scale = SolveScale(
         "upper_arm_girth_mm",
