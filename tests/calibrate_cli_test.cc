@@ -10,9 +10,10 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "host/calibration/intrinsics.h"
 #include "common/config/json_reader.h"
+#include "host/calibration/intrinsics.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {

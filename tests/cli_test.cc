@@ -15,6 +15,7 @@
 #include "tests/support/calibration_truth.h"
 #include "tests/support/peak_truth.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {

@@ -13,10 +13,10 @@
 
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
-#include "firmware/service/api_server.h"
-#include "firmware/service/test_scan_control.h"
 #include "host/client/device_client.h"
+#include "tests/support/in_process_device.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 #include "tests/tcp_cut_proxy.h"
 
 namespace mirrorscan {
@@ -28,7 +28,7 @@ using client::DeviceError;
 using nlohmann::json;
 using test_util::TcpCutProxy;
 
-constexpr char kToken[] = "virtual-dev-token-not-a-secret";
+constexpr const char* kToken = test_support::kVirtualToken;
 const fs::path kCalibration =
     fs::path(MIRRORSCAN_SOURCE_DIR) / "firmware/service/testdata/calibration.json";
 
@@ -38,33 +38,16 @@ using test_support::ReadFile;
 class DeviceApiTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("mirrorscan_device_api_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
     fs::create_directories(dir_ / "host");
-    board_ =
-        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/board.json");
-    store_ = store::ScanStore::Open(dir_ / "device" / "scans");
+    test_support::InProcessDeviceOptions options;
     // ~0.9 MB archives, written over ~1 s, so cuts land mid-stream and follows see a live scan.
-    control_ = std::make_unique<service::TestScanControl>(
-        *store_, service::TestScanControl::Options{.frames = 100,
-                                                   .frame_interval = std::chrono::milliseconds(10),
-                                                   .peaks_per_frame = 500});
-    calibration_ =
-        std::make_unique<service::CalibrationStore>(dir_ / "device" / "calibration.json");
-    service::ApiServerOptions options;
-    options.firmware_version = "test";
-    server_ = std::make_unique<service::ApiServer>(*store_, *control_, board_, *calibration_,
-                                                   kToken, options);
-    port_ = server_->Start("127.0.0.1:0");
-  }
-
-  void TearDown() override {
-    server_.reset();
-    control_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
+    options.scan = {
+        .frames = 100, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 500};
+    options.server.firmware_version = "test";
+    device_ = std::make_unique<test_support::InProcessDevice>(dir_ / "device", options);
+    store_ = device_->store.get();
+    control_ = device_->control.get();
+    port_ = device_->port;
   }
 
   std::string Host(int port = 0) const {
@@ -90,12 +73,10 @@ class DeviceApiTest : public ::testing::Test {
                                     dir_ / "stderr.txt");
   }
 
-  fs::path dir_;
-  board::BoardConfig board_;
-  std::unique_ptr<store::ScanStore> store_;
-  std::unique_ptr<service::TestScanControl> control_;
-  std::unique_ptr<service::CalibrationStore> calibration_;
-  std::unique_ptr<service::ApiServer> server_;
+  const test_support::TempDir dir_{"mirrorscan_device_api_test"};
+  std::unique_ptr<test_support::InProcessDevice> device_;
+  store::ScanStore* store_ = nullptr;
+  service::TestScanControl* control_ = nullptr;
   int port_ = 0;
 };
 

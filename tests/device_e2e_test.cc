@@ -15,8 +15,11 @@
 
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "tests/support/daemon.h"
+#include "tests/support/loopback.h"
 #include "tests/support/process.h"
 #include "tests/support/scene_truth.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {
@@ -33,24 +36,13 @@ using test_support::ReadFile;
 class DeviceEndToEndTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/device_e2e_test.XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern), nullptr);
-    dir_ = pattern;
     fs::create_directories(dir_ / "host");
     token_ = json::parse(ReadFile(kSource / "boards/virtual/board.json"))["service"]["token"];
-    host_ = "127.0.0.1:" + std::to_string(test_support::FreeLoopbackPort());
-    const fs::path board = WriteBoard();
-    daemon_ = std::make_unique<ChildProcess>(
-        MIRRORSCAND_PATH,
-        std::vector<std::string>{"--board", board.string(), "--data-dir", (dir_ / "data").string(),
-                                 "--listen", host_},
-        dir_ / "daemon.log");
-    // Ready when the API answers.
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (Run("device status").exit_code != 0) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << daemon_->Log();
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
+    daemon_ = test_support::StartMirrorscand({"--board", WriteBoard().string(), "--data-dir",
+                                              (dir_ / "data").string(), "--listen", host_},
+                                             dir_ / "daemon.log");
+    ASSERT_TRUE(test_support::WaitUntilServing(*daemon_, port_, std::chrono::seconds(30)))
+        << daemon_->Log();
   }
 
   void TearDown() override {
@@ -58,7 +50,6 @@ class DeviceEndToEndTest : public ::testing::Test {
       daemon_->Signal(SIGTERM);
       EXPECT_EQ(daemon_->Wait(), 0) << daemon_->Log();
     }
-    fs::remove_all(dir_);
   }
 
   // The virtual board as shipped (both cameras rendering the mannequin), with the sweep
@@ -80,9 +71,10 @@ class DeviceEndToEndTest : public ::testing::Test {
         dir_ / "stderr.txt");
   }
 
-  fs::path dir_;
+  const test_support::TempDir dir_{"device_e2e_test"};
+  const int port_ = test_support::FreeLoopbackPort();
+  const std::string host_ = "127.0.0.1:" + std::to_string(port_);
   std::string token_;
-  std::string host_;
   std::unique_ptr<ChildProcess> daemon_;
 };
 

@@ -27,7 +27,9 @@
 #include <nlohmann/json.hpp>
 
 #include "firmware/hal/virtual/virtual_monostable.h"
-#include "tests/support/process.h"
+#include "tests/support/daemon.h"
+#include "tests/support/loopback.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/virtual_board.h"
 
 namespace mirrorscan {
@@ -42,73 +44,10 @@ using std::chrono::seconds;
 const fs::path kSource = MIRRORSCAN_SOURCE_DIR;
 constexpr const char* kToken = "virtual-dev-token-not-a-secret";
 
-// A socket to 127.0.0.1:port from `source` (any 127/8 address: several "clients").
-int Connect(int port, const char* source = "127.0.0.1", milliseconds timeout = milliseconds(2000)) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return -1;
-  timeval tv{static_cast<time_t>(timeout.count() / 1000),
-             static_cast<suseconds_t>(timeout.count() % 1000 * 1000)};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
-  sockaddr_in from{};
-  from.sin_family = AF_INET;
-  ::inet_pton(AF_INET, source, &from.sin_addr);
-  sockaddr_in to{};
-  to.sin_family = AF_INET;
-  to.sin_port = htons(static_cast<uint16_t>(port));
-  to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof(from)) != 0 ||
-      ::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof(to)) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-bool SendAll(int fd, const std::string& bytes) {
-  size_t sent = 0;
-  while (sent < bytes.size()) {
-    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) return false;
-    sent += static_cast<size_t>(n);
-  }
-  return true;
-}
-
-struct Reply {
-  int status = 0;  // 0: no answer
-  std::string headers;
-  std::string body;
-};
-
-// One request with Connection: close; the whole reply (bounded by the socket timeout).
-Reply Request(int port, const std::string& method, const std::string& path,
-              const std::string& token = "", const std::string& body = "") {
-  Reply reply;
-  const int fd = Connect(port);
-  if (fd < 0) return reply;
-  std::string request = method + " " + path + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n";
-  if (!token.empty()) request += "Authorization: Bearer " + token + "\r\n";
-  if (!body.empty() || method == "POST" || method == "PUT") {
-    request +=
-        "Content-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) + "\r\n";
-  }
-  request += "\r\n" + body;
-  std::string raw;
-  if (SendAll(fd, request)) {
-    char buffer[16384];
-    for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0 && raw.size() < (64u << 20);) {
-      raw.append(buffer, static_cast<size_t>(n));
-    }
-  }
-  ::close(fd);
-  const size_t end = raw.find("\r\n\r\n");
-  if (raw.rfind("HTTP/1.1 ", 0) != 0 || end == std::string::npos) return reply;
-  reply.status = std::atoi(raw.c_str() + 9);
-  reply.headers = raw.substr(0, end);
-  reply.body = raw.substr(end + 4);
-  return reply;
-}
+using test_support::ConnectLoopback;
+using test_support::HttpReply;
+using test_support::HttpRequest;
+using test_support::SendAll;
 
 long RssKb(pid_t pid) {
   std::ifstream status("/proc/" + std::to_string(pid) + "/status");
@@ -140,22 +79,14 @@ bool AllThreadsStopped(pid_t pid) {
 
 class DeviceHostileTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char pattern[] = "/tmp/device_hostile_test.XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    data_ = dir_ / "data";
-    port_ = test_support::FreeLoopbackPort();
-  }
   void TearDown() override {
     if (mounted_) ::umount2(data_.c_str(), MNT_DETACH);
-    fs::remove_all(dir_);
   }
 
   // The virtual board (token for reads: the shipped default) with a `sweep_mm` sweep and
   // replay cameras (a 160 x 120 stripe) unless `render`.
   fs::path WriteBoard(double sweep_mm, bool render = false) {
-    return test_support::WriteVirtualBoard(dir_, 200 + sweep_mm, !render);
+    return test_support::WriteVirtualBoard(dir_.path(), 200 + sweep_mm, !render);
   }
   std::vector<std::string> Args(const fs::path& board) const {
     return {"--board",      board.string(), "--data-dir",
@@ -163,17 +94,17 @@ class DeviceHostileTest : public ::testing::Test {
   }
   std::unique_ptr<test_support::ChildProcess> Start(const std::vector<std::string>& args,
                                                     const std::string& log) {
-    auto daemon = std::make_unique<test_support::ChildProcess>(MIRRORSCAND_PATH, args, dir_ / log);
-    EXPECT_TRUE(daemon->WaitLog("ready", seconds(60))) << daemon->Log();
+    auto daemon = test_support::StartMirrorscand(args, dir_ / log);
+    EXPECT_TRUE(test_support::WaitUntilServing(*daemon, port_)) << daemon->Log();
     return daemon;
   }
   std::string StartScan() {
-    const Reply r = Request(port_, "POST", "/api/v1/scans", kToken);
+    const HttpReply r = HttpRequest(port_, "POST", "/api/v1/scans", kToken);
     EXPECT_EQ(r.status, 201) << r.body;
     return r.status == 201 ? json::parse(r.body).value("id", "") : "";
   }
   json Status() {
-    const Reply r = Request(port_, "GET", "/api/v1/status");
+    const HttpReply r = HttpRequest(port_, "GET", "/api/v1/status");
     return r.status == 200 ? json::parse(r.body) : json();
   }
   // Polls the status (every 20 ms, at most `limit`) until `done` says so.
@@ -187,8 +118,9 @@ class DeviceHostileTest : public ::testing::Test {
     return false;
   }
 
-  fs::path dir_, data_;
-  int port_ = 0;
+  const test_support::TempDir dir_{"device_hostile_test"};
+  const fs::path data_ = dir_ / "data";
+  const int port_ = test_support::FreeLoopbackPort();
   bool mounted_ = false;
 };
 
@@ -200,22 +132,22 @@ TEST_F(DeviceHostileTest, ReadsWithoutTheTokenAre401) {
            "/api/v1/scans", "/api/v1/scans/" + id, "/api/v1/scans/" + id + "/archive",
            "/api/v1/scans/" + id + "/archive?follow=1", "/api/v1/events", "/api/v1/calibration"}) {
     SCOPED_TRACE(path);
-    const Reply r = Request(port_, "GET", path);
+    const HttpReply r = HttpRequest(port_, "GET", path);
     EXPECT_EQ(r.status, 401) << r.body;
     EXPECT_TRUE(r.body.find("\"unauthorized\"") != std::string::npos) << r.body;
-    EXPECT_EQ(Request(port_, "GET", path, std::string(kToken) + "x").status, 403);
+    EXPECT_EQ(HttpRequest(port_, "GET", path, std::string(kToken) + "x").status, 403);
   }
-  EXPECT_EQ(Request(port_, "GET", "/api/v1/status").status, 200);
-  const Reply archive = Request(port_, "GET", "/api/v1/scans/" + id + "/archive", kToken);
+  EXPECT_EQ(HttpRequest(port_, "GET", "/api/v1/status").status, 200);
+  const HttpReply archive = HttpRequest(port_, "GET", "/api/v1/scans/" + id + "/archive", kToken);
   EXPECT_EQ(archive.status, 200);
   EXPECT_EQ(archive.body.size(), fs::file_size(data_ / (id + ".mscan")));
 }
 
 TEST_F(DeviceHostileTest, AGigabyteChunkedBodyWithoutATokenIsRefusedUnread) {
   auto daemon = Start(Args(WriteBoard(100)), "log");
-  ASSERT_EQ(Request(port_, "GET", "/api/v1/status").status, 200);
+  ASSERT_EQ(HttpRequest(port_, "GET", "/api/v1/status").status, 200);
   const long rss_before = RssKb(daemon->pid());
-  const int fd = Connect(port_);
+  const int fd = ConnectLoopback(port_);
   ASSERT_GE(fd, 0);
   ASSERT_TRUE(SendAll(fd,
                       "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\n"
@@ -225,9 +157,7 @@ TEST_F(DeviceHostileTest, AGigabyteChunkedBodyWithoutATokenIsRefusedUnread) {
   const auto deadline = Clock::now() + seconds(20);
   uint64_t sent = 0;
   while (sent < (1ull << 30) && Clock::now() < deadline && SendAll(fd, chunk)) sent += 1 << 20;
-  std::string reply;
-  char buffer[4096];
-  for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0;) reply.append(buffer, n);
+  test_support::ReceiveAll(fd);
   ::close(fd);
   const long rss_after = RssKb(daemon->pid());
   std::printf(
@@ -236,7 +166,7 @@ TEST_F(DeviceHostileTest, AGigabyteChunkedBodyWithoutATokenIsRefusedUnread) {
       static_cast<unsigned long long>(sent >> 20), rss_before, rss_after, rss_after - rss_before);
   EXPECT_LT(sent, 1ull << 30);
   EXPECT_LT(rss_after - rss_before, 10 * 1024);
-  EXPECT_EQ(Request(port_, "GET", "/api/v1/status").status, 200);
+  EXPECT_EQ(HttpRequest(port_, "GET", "/api/v1/status").status, 200);
 }
 
 // 50 idle, 16 reconnecting-silent and 10 trickling sockets from other addresses, held
@@ -250,7 +180,7 @@ TEST_F(DeviceHostileTest, StatusStaysServedUnderIdleSilentAndTricklingSockets) {
   auto hold = [&](int i, milliseconds trickle) {
     const std::string from = source(i);
     while (!stop) {
-      const int fd = Connect(port_, from.c_str(), milliseconds(200));
+      const int fd = ConnectLoopback(port_, from.c_str(), milliseconds(200));
       if (fd < 0) {
         std::this_thread::sleep_for(milliseconds(50));
         continue;
@@ -281,7 +211,7 @@ TEST_F(DeviceHostileTest, StatusStaysServedUnderIdleSilentAndTricklingSockets) {
   const auto end = Clock::now() + seconds(30);
   while (Clock::now() < end && latencies_ms.size() + failed < 1000) {
     const auto t0 = Clock::now();
-    const Reply r = Request(port_, "GET", "/api/v1/status");
+    const HttpReply r = HttpRequest(port_, "GET", "/api/v1/status");
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     if (r.status == 200) {
       latencies_ms.push_back(ms);
@@ -331,12 +261,13 @@ TEST_F(DeviceHostileTest, AFullDiskFaultsCleanlyAndTheDaemonRestartsAndServes) {
         WaitStatus([](const json& s) { return s["scan"]["state"] == "fault"; }, seconds(60)))
         << daemon->Log();
     // Right at once: the scan is not "writing", and a follow of it ends.
-    const Reply scan = Request(port_, "GET", "/api/v1/scans/" + id, kToken);
+    const HttpReply scan = HttpRequest(port_, "GET", "/api/v1/scans/" + id, kToken);
     ASSERT_EQ(scan.status, 200);
     const std::string state = json::parse(scan.body).value("state", "");
     EXPECT_TRUE(state == "fault" || state == "partial") << scan.body;
     const auto t0 = Clock::now();
-    const Reply follow = Request(port_, "GET", "/api/v1/scans/" + id + "/archive?follow=1", kToken);
+    const HttpReply follow =
+        HttpRequest(port_, "GET", "/api/v1/scans/" + id + "/archive?follow=1", kToken);
     EXPECT_EQ(follow.status, 200);
     EXPECT_LT(Clock::now() - t0, seconds(2));
     const json status = Status();
@@ -349,7 +280,7 @@ TEST_F(DeviceHostileTest, AFullDiskFaultsCleanlyAndTheDaemonRestartsAndServes) {
   for (const int signal : {SIGKILL, SIGTERM}) {
     SCOPED_TRACE(signal);
     auto daemon = Start(Args(board), signal == SIGKILL ? "log2" : "log3");
-    const Reply scan = Request(port_, "GET", "/api/v1/scans/" + id, kToken);
+    const HttpReply scan = HttpRequest(port_, "GET", "/api/v1/scans/" + id, kToken);
     ASSERT_EQ(scan.status, 200) << daemon->Log();
     const std::string state = json::parse(scan.body).value("state", "");
     EXPECT_TRUE(state == "fault" || state == "partial") << scan.body;
@@ -360,7 +291,7 @@ TEST_F(DeviceHostileTest, AFullDiskFaultsCleanlyAndTheDaemonRestartsAndServes) {
   }
   // Deleting needs no space and makes room.
   auto daemon = Start(Args(board), "log4");
-  EXPECT_EQ(Request(port_, "DELETE", "/api/v1/scans/" + id, kToken).status, 200);
+  EXPECT_EQ(HttpRequest(port_, "DELETE", "/api/v1/scans/" + id, kToken).status, 200);
   fs::remove(data_ / "filler");
   // The store has nothing left in memory only; the 8 MiB tmpfs stays under the 64 MiB
   // a scan wants, so `full` stays, with the free-space reason.
@@ -442,13 +373,13 @@ TEST_F(DeviceHostileTest, ScansCompleteWithTheMachineLoadedToTwiceItsCores) {
   }
   std::vector<std::string> args = Args(WriteBoard(300, /*render=*/true));
   args.insert(args.end(), {"--scan-on-start", "--exit-after-scan"});
-  test_support::ChildProcess daemon(MIRRORSCAND_PATH, args, dir_ / "log");
-  const int code = daemon.Wait(seconds(110));
+  auto daemon = test_support::StartMirrorscand(args, dir_ / "log");
+  const int code = daemon->Wait(seconds(110));
   for (const pid_t pid : load) {
     ::kill(pid, SIGKILL);
     ::waitpid(pid, nullptr, 0);
   }
-  const std::string log = daemon.Log();
+  const std::string log = daemon->Log();
   ASSERT_EQ(code, 0) << log;
   // The footer as the sequencer logs it: "sequencer: scan <id> complete: {...}".
   const std::string marker = " complete: ";

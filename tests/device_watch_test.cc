@@ -13,7 +13,10 @@
 #include <nlohmann/json.hpp>
 
 #include "common/protocol/protocol.h"
+#include "tests/support/daemon.h"
+#include "tests/support/loopback.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {
@@ -30,22 +33,16 @@ const std::string kBin = MIRRORSCAN_BIN_DIR;
 class DeviceWatchTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = test_support::FreshTempDir("device_watch_test");
     token_ = json::parse(ReadFile(kSource / "boards/virtual/board.json"))["service"]["token"];
-    host_ = "127.0.0.1:" + std::to_string(test_support::FreeLoopbackPort());
     json board = json::parse(ReadFile(kSource / "boards/virtual/board.json"));
     board["virtual"]["scene"] = (kSource / "boards/virtual/scenes/mannequin.json").string();
     std::ofstream(dir_ / "board.json") << board.dump(2);
-    daemon_ = std::make_unique<ChildProcess>(
-        fs::path(MIRRORSCAND_PATH),
-        std::vector<std::string>{"--board", (dir_ / "board.json").string(), "--data-dir",
-                                 (dir_ / "data").string(), "--listen", host_},
-        dir_ / "daemon.log");
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (Run("device status").exit_code != 0) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << daemon_->Log();
-      std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    }
+    daemon_ =
+        test_support::StartMirrorscand({"--board", (dir_ / "board.json").string(), "--data-dir",
+                                        (dir_ / "data").string(), "--listen", host_},
+                                       dir_ / "daemon.log");
+    ASSERT_TRUE(test_support::WaitUntilServing(*daemon_, port_, std::chrono::seconds(30)))
+        << daemon_->Log();
     // The scene's true calibration on the device, so its archives name it.
     const CommandResult truth =
         Run("sim render --scene " + (kSource / "boards/virtual/scenes/mannequin.json").string() +
@@ -62,20 +59,20 @@ class DeviceWatchTest : public ::testing::Test {
       daemon_->Signal(SIGTERM);
       EXPECT_EQ(daemon_->Wait(), 0) << daemon_->Log();
     }
-    fs::remove_all(dir_);
   }
 
   CommandResult Run(const std::string& arguments, bool device = true,
                     const std::string& token = "") const {
     return test_support::RunCommand(
-        "cd " + dir_.string() + " && MIRRORSCAN_TOKEN=" + (token.empty() ? token_ : token) + " " +
-            kBin + "/mirrorscan " + arguments + (device ? " --host " + host_ : ""),
+        "cd " + dir_.path().string() + " && MIRRORSCAN_TOKEN=" + (token.empty() ? token_ : token) +
+            " " + kBin + "/mirrorscan " + arguments + (device ? " --host " + host_ : ""),
         dir_ / "stderr.txt");
   }
 
-  fs::path dir_;
+  const test_support::TempDir dir_{"device_watch_test"};
+  const int port_ = test_support::FreeLoopbackPort();
+  const std::string host_ = "127.0.0.1:" + std::to_string(port_);
   std::string token_;
-  std::string host_;
   std::unique_ptr<ChildProcess> daemon_;
 };
 

@@ -23,7 +23,10 @@
 #include "boards/virtual/scene.h"
 #include "common/config/calibration.h"
 #include "tests/support/calibration_truth.h"
+#include "tests/support/daemon.h"
+#include "tests/support/loopback.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {
@@ -52,30 +55,18 @@ double NumberAfter(const std::string& text, const std::string& prefix) {
 class FactoryCalibrateTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/factory_calibrate_test.XXXXXX";
-    ASSERT_NE(::mkdtemp(pattern), nullptr);
-    dir_ = pattern;
     token_ = json::parse(ReadFile(kSource / "boards/virtual/board.json"))["service"]["token"];
-    host_ = "127.0.0.1:" + std::to_string(test_support::FreeLoopbackPort());
   }
 
-  void TearDown() override {
-    StopDaemon();
-    fs::remove_all(dir_);
-  }
+  void TearDown() override { StopDaemon(); }
 
   void StartDaemon(const fs::path& scene) {
-    daemon_ = std::make_unique<ChildProcess>(
-        kBinDir / "mirrorscand",
-        std::vector<std::string>{"--board", (kSource / "boards/virtual/board.json").string(),
-                                 "--data-dir", (dir_ / "data").string(), "--listen", host_,
-                                 "--scene", scene.string()},
+    daemon_ = test_support::StartMirrorscand(
+        {"--board", (kSource / "boards/virtual/board.json").string(), "--data-dir",
+         (dir_ / "data").string(), "--listen", host_, "--scene", scene.string()},
         dir_ / "daemon.log");
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-    while (Shell(Mirrorscan() + " device status --host " + host_).exit_code != 0) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << daemon_->Log();
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
+    ASSERT_TRUE(test_support::WaitUntilServing(*daemon_, port_, std::chrono::seconds(30)))
+        << daemon_->Log();
   }
 
   // The daemon rendering the calibration scene with `changes` merged in.
@@ -109,9 +100,10 @@ class FactoryCalibrateTest : public ::testing::Test {
                  out.string() + " --readback-offset 50" + lenses);
   }
 
-  fs::path dir_;
+  const test_support::TempDir dir_{"factory_calibrate_test"};
+  const int port_ = test_support::FreeLoopbackPort();
+  const std::string host_ = "127.0.0.1:" + std::to_string(port_);
   std::string token_;
-  std::string host_;
   std::unique_ptr<ChildProcess> daemon_;
 };
 

@@ -33,6 +33,7 @@
 #include "firmware/store/scan_store.h"
 #include "tests/support/process.h"
 #include "tests/support/scene_truth.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/virtual_board.h"
 
 namespace mirrorscan {
@@ -54,19 +55,10 @@ class Daemon : public test_support::ChildProcess {
 
 class MirrorscandTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    char pattern[] = "/tmp/mirrorscand_test.XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
-    data_ = dir_ / "data";
-    lines_ = dir_ / "lines";
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // The virtual board with a 300 mm sweep (2 s) and, if `replay`, replay cameras playing a
   // 160 x 120 stripe instead of the renderer.
   fs::path WriteBoard(bool replay, double sweep_end_mm = 500.0) {
-    return test_support::WriteVirtualBoard(dir_, sweep_end_mm, replay);
+    return test_support::WriteVirtualBoard(dir_.path(), sweep_end_mm, replay);
   }
   std::vector<std::string> Args(const fs::path& board) {
     // Port 0: the device API takes any free port, so parallel tests never collide.
@@ -168,7 +160,9 @@ class MirrorscandTest : public ::testing::Test {
     return {after[0], off_ns};
   }
 
-  fs::path dir_, data_, lines_;
+  const test_support::TempDir dir_{"mirrorscand_test"};
+  const fs::path data_ = dir_ / "data";
+  const fs::path lines_ = dir_ / "lines";
 };
 
 TEST_F(MirrorscandTest, VirtualScanFromTheStartHookStoresEveryFrame) {

@@ -25,7 +25,9 @@
 #include <nlohmann/json.hpp>
 
 #include "firmware/hal/virtual/virtual_monostable.h"
+#include "tests/support/loopback.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 #include "tests/support/virtual_board.h"
 
 namespace mirrorscan {

@@ -12,6 +12,7 @@
 
 #include "common/config/json_reader.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {

@@ -26,12 +26,14 @@
 #include "common/peaks/peaks.h"
 #include "firmware/board/board_config.h"
 #include "firmware/board/devices.h"
+#include "firmware/board/virtual/linked_simulator.h"
 #include "firmware/hal/camera.h"
 #include "firmware/hal/replay/replay_camera.h"
 #include "firmware/scan/bounded_queue.h"
 #include "firmware/scan/drive_monitor.h"
 #include "firmware/scan/sequencer.h"
 #include "firmware/store/scan_store.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan {
 namespace {
@@ -63,12 +65,6 @@ const board::BoardConfig& VirtualBoard() {
   static const board::BoardConfig config =
       board::BoardConfig::Load(kSource / "boards/virtual/board.json");
   return config;
-}
-
-fs::path TempDir(const char* name) {
-  std::string pattern = "/tmp/" + std::string(name) + ".XXXXXX";
-  if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
-  return pattern;
 }
 
 double ProcessCpuSeconds() {
@@ -106,9 +102,9 @@ void BM_CaptureToStore(benchmark::State& state) {
   const int width = frames[0].width, height = frames[0].height;
   const int count = static_cast<int>(frames.size());
   auto pool = std::make_shared<hal::FramePool>(width, height, 4);
-  const fs::path dir = TempDir("scan_pipeline_benchmark");
+  const test_support::TempDir dir("scan_pipeline_benchmark");
   {
-    auto store = store::ScanStore::Open(dir);
+    auto store = store::ScanStore::Open(dir.path());
     auto handle = store->BeginScan({{"board", "benchmark"}});
     StillDrive drive;
     scan::DriveMonitor monitor(drive, std::chrono::milliseconds(10));
@@ -147,12 +143,11 @@ void BM_CaptureToStore(benchmark::State& state) {
     state.counters["bytes/frame"] =
         static_cast<double>(handle->bytes()) / static_cast<double>(state.iterations());
   }
-  fs::remove_all(dir);
 }
 BENCHMARK(BM_CaptureToStore)->Unit(benchmark::kMillisecond);
 
 void BM_SequencerScan(benchmark::State& state) {
-  const fs::path dir = TempDir("scan_pipeline_benchmark");
+  const test_support::TempDir dir("scan_pipeline_benchmark");
   // Replay cameras playing the rendered frames, so the renderer is not in the figure.
   board::BoardConfig config = VirtualBoard();
   config.scan.sweep_start_mm = 200;
@@ -170,7 +165,9 @@ void BM_SequencerScan(benchmark::State& state) {
     config.cameras[c].backend = board::CameraBackend::kReplay;
     config.cameras[c].path = frames_dir;
   }
-  board::BoardDevices devices = board::MakeBoardDevices(config);
+  board::DeviceOptions options;
+  options.simulator = board::LinkedSimulator();
+  board::BoardDevices devices = board::MakeBoardDevices(config, options);
   auto store = store::ScanStore::Open(dir / "data");
   scan::SequencerDevices sd;
   for (size_t i = 0; i < 2; ++i)
@@ -204,7 +201,6 @@ void BM_SequencerScan(benchmark::State& state) {
   state.counters["cpu_ms/frame"] = cpu_s * 1e3 / static_cast<double>(stored);
   state.counters["frames"] = static_cast<double>(stored);
   state.counters["dropped"] = static_cast<double>(dropped);
-  fs::remove_all(dir);
 }
 BENCHMARK(BM_SequencerScan)->Iterations(2)->Unit(benchmark::kMillisecond);
 

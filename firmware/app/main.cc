@@ -32,6 +32,7 @@
 #include "firmware/app/self_check.h"
 #include "firmware/board/board_config.h"
 #include "firmware/board/devices.h"
+#include "firmware/board/virtual/linked_simulator.h"
 #include "firmware/hal/clock.h"
 #include "firmware/hal/hardware_error.h"
 #include "firmware/scan/sequencer.h"
@@ -235,7 +236,7 @@ void PressVirtualButton(board::BoardDevices& devices, int debounce_ms) {
 std::function<void()> VirtualFault(const std::string& fault, const board::BoardConfig& config,
                                    board::BoardDevices& devices, std::string& problem) {
   if (fault == "drive-fault") {
-    virtual_cabinet::DriveSim* sim = devices.drive_sim.get();
+    board::SimulatedDrive* sim = devices.drive_sim.get();
     if (sim == nullptr) {
       problem = "drive-fault needs drive.backend \"virtual\"";
       return {};
@@ -287,6 +288,7 @@ int Check(const Args& args, const board::BoardConfig& config) {
   options.board_file = args.board;
   options.data_dir = args.data_dir;
   options.scene = args.scene;
+  options.simulator = board::LinkedSimulator();
   options.fault_lasers_stuck = args.check_fault == "lasers-stuck";
   options.fault_drive_silent = args.check_fault == "drive-silent";
   const std::vector<app::CheckResult> results =
@@ -325,6 +327,7 @@ int Run(const Args& args, const sigset_t& signals) {
   board::BoardDevices devices;
   try {
     board::DeviceOptions device_options;
+    device_options.simulator = board::LinkedSimulator();
     device_options.scene = args.scene;
     device_options.interlock_state_file = args.interlock_state;
     device_options.line_state_file = args.line_state;

@@ -243,6 +243,7 @@ std::vector<CheckResult> RunSelfCheck(const board::BoardConfig& config,
   try {
     board::DeviceOptions device_options;
     device_options.scene = options.scene;
+    device_options.simulator = options.simulator;
     devices = board::MakeBoardDevices(config, device_options);
     have_devices = true;
   } catch (const std::exception& e) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "firmware/board/board_config.h"
+#include "firmware/board/simulator.h"
 
 namespace mirrorscan::app {
 
@@ -25,6 +26,7 @@ struct SelfCheckOptions {
   std::filesystem::path board_file;
   std::filesystem::path data_dir;
   std::filesystem::path scene;  // virtual boards: replaces virtual.scene
+  board::Simulator simulator;   // virtual boards: their drive and cameras
   uint64_t min_free_bytes = 64u << 20;
   // Virtual boards only, for the tests: the laser lines never go off once on.
   bool fault_lasers_stuck = false;

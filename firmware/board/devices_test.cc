@@ -16,9 +16,13 @@
 
 #include <gtest/gtest.h>
 
+#include "boards/virtual/drive_sim/drive_sim.h"
+#include "firmware/board/virtual/linked_simulator.h"
+#include "firmware/board/virtual/simulated_drive.h"
 #include "firmware/hal/hardware_error.h"
 #include "firmware/hal/libcamera/libcamera_loader.h"
 #include "firmware/hal/replay/replay_camera.h"
+#include "tests/support/temp_dir.h"
 #if MIRRORSCAN_HAS_RENDERER
 #include "boards/virtual/renderer.h"
 #endif
@@ -32,9 +36,28 @@ const fs::path kVirtualBoard =
 
 nlohmann::json VirtualBoard() { return JsonReader::ParseFile(kVirtualBoard); }
 
-std::string ErrorOf(const nlohmann::json& board) {
+// The simulator as mirrorscand links it (none in the firmware-only build).
+DeviceOptions Linked() {
+  DeviceOptions options;
+  options.simulator = LinkedSimulator();
+  return options;
+}
+
+// The drive simulator alone: it builds for the board too, the renderer does not.
+DeviceOptions DriveSimulatorOnly() {
+  DeviceOptions options;
+  options.simulator.serve_drive = [] { return std::make_unique<SimulatedModbusDrive>(); };
+  return options;
+}
+
+// The simulator's state behind a board's virtual drive.
+virtual_cabinet::DriveSimState SimState(BoardDevices& devices) {
+  return dynamic_cast<SimulatedModbusDrive&>(*devices.drive_sim).sim().State();
+}
+
+std::string ErrorOf(const nlohmann::json& board, const DeviceOptions& options = Linked()) {
   try {
-    MakeBoardDevices(BoardConfig::Parse(board, kVirtualBoard.string()));
+    MakeBoardDevices(BoardConfig::Parse(board, kVirtualBoard.string()), options);
   } catch (const hal::HardwareError& e) {
     return e.what();
   }
@@ -45,38 +68,35 @@ std::string ErrorOf(const nlohmann::json& board) {
 class ReplayBoardTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/devices_test.XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
     std::vector<uint8_t> pixels(64 * 48, 10);
     hal::WritePgm(dir_ / "000.pgm", 64, 48, pixels.data());
     board_ = VirtualBoard();
     for (auto& camera : board_["cameras"]) {
       camera.erase("id");
       camera["backend"] = "replay";
-      camera["path"] = dir_.string();
+      camera["path"] = dir_.path().string();
       camera["width"] = 64;
       camera["height"] = 48;
     }
     board_["cameras"][1]["path"] = (dir_ / ".").string();
   }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  const test_support::TempDir dir_{"devices_test"};
   nlohmann::json board_;
 };
 
 TEST_F(ReplayBoardTest, VirtualDriveAnswersOverModbusAndLinesStartOff) {
-  BoardDevices d = MakeBoardDevices(BoardConfig::Parse(board_, kVirtualBoard.string()));
+  BoardDevices d =
+      MakeBoardDevices(BoardConfig::Parse(board_, kVirtualBoard.string()), DriveSimulatorOnly());
   ASSERT_TRUE(d.drive_sim);
   ASSERT_EQ(d.cameras.size(), 2u);
   EXPECT_EQ(d.cameras[0]->config().width, 64);
   // The Modbus path reaches the simulator: a command shows up in its state.
-  const uint64_t before = d.drive_sim->State().requests;
+  const uint64_t before = SimState(d).requests;
   d.drive->Enable(true);
   EXPECT_TRUE(d.drive->Status().enabled);
-  EXPECT_TRUE(d.drive_sim->State().model.enabled);
-  EXPECT_GT(d.drive_sim->State().requests, before);
-  EXPECT_NEAR(d.drive->Position(), d.drive_sim->State().model.position_mm, 0.01);
+  EXPECT_TRUE(SimState(d).model.enabled);
+  EXPECT_GT(SimState(d).requests, before);
+  EXPECT_NEAR(d.drive->Position(), SimState(d).model.position_mm, 0.01);
   ASSERT_EQ(d.virtual_lasers.size(), 3u);
   for (auto* line : d.virtual_lasers) EXPECT_FALSE(line->driven());
   d.gpio.lasers->SetAll(true);
@@ -88,16 +108,15 @@ TEST_F(ReplayBoardTest, VirtualDriveAnswersOverModbusAndLinesStartOff) {
 // A libcamera camera goes to the dlopen'ed module and nowhere else: with the module
 // missing the board fails, naming the file (no fallback to another camera).
 TEST(DevicesTest, LibcameraCameraWithoutTheModuleFails) {
-  const std::filesystem::path empty_dir = std::filesystem::temp_directory_path() /
-                                          ("devices_test_no_module_" + std::to_string(getpid()));
-  std::filesystem::create_directories(empty_dir);
-  setenv(hal::kModuleDirEnv, empty_dir.c_str(), 1);
+  const test_support::TempDir empty_dir("devices_test_no_module");
+  setenv(hal::kModuleDirEnv, empty_dir.path().c_str(), 1);
   nlohmann::json board = VirtualBoard();
-  board["cameras"][0]["backend"] = "libcamera";
-  board["cameras"][0]["id"] = "/base/imx219";
-  const std::string error = ErrorOf(board);
+  for (int i = 0; i < 2; ++i) {
+    board["cameras"][i]["backend"] = "libcamera";
+    board["cameras"][i]["id"] = "/base/imx219@" + std::to_string(i);
+  }
+  const std::string error = ErrorOf(board, DriveSimulatorOnly());
   unsetenv(hal::kModuleDirEnv);
-  std::filesystem::remove_all(empty_dir);
   EXPECT_NE(error.find(hal::kLibcameraModuleFile), std::string::npos) << error;
 }
 
@@ -121,7 +140,14 @@ TEST(DevicesTest, VirtualCameraNeedsTheVirtualDrive) {
   board["drive"] = JsonReader::ParseFile(kVirtualBoard.parent_path().parent_path() / "rpi5" /
                                          "board.json")["drive"];
   board["drive"]["link"] = {{"transport", "tcp"}, {"host", "127.0.0.1"}, {"port", sim->port()}};
-  const std::string error = ErrorOf(board);
+  // A renderer is there (a stand-in: the firmware-only build has none), so what is
+  // refused is the drive.
+  DeviceOptions options;
+  options.simulator.open_cabinet = [](const fs::path&, double) {
+    ADD_FAILURE() << "the cabinet was opened";
+    return std::unique_ptr<VirtualCabinet>();
+  };
+  const std::string error = ErrorOf(board, options);
   EXPECT_NE(error.find("needs drive.backend and gpio.backend \"virtual\""), std::string::npos)
       << error;
 }
@@ -133,7 +159,7 @@ TEST(DevicesTest, VirtualCameraNeedsTheVirtualDrive) {
 // drive's own position.
 TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
   const BoardConfig config = BoardConfig::Load(kVirtualBoard);
-  BoardDevices d = MakeBoardDevices(config);
+  BoardDevices d = MakeBoardDevices(config, Linked());
   ASSERT_EQ(d.cameras.size(), 2u);
   EXPECT_EQ(d.cameras[0]->config().width, 1024);
   d.drive->Enable(true);
@@ -145,7 +171,7 @@ TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
     ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the drive did not reach 450 mm";
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  const double slide_mm = d.drive_sim->State().model.position_mm;
+  const double slide_mm = SimState(d).model.position_mm;
   d.gpio.lasers->SetAll(true);
   // The lasers emit only while the interlock is kicked (the sequencer's tick does it).
   ASSERT_NE(d.gpio.interlock, nullptr);
@@ -209,11 +235,27 @@ TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
   }
 }
 #else
-TEST(DevicesTest, FirmwareOnlyBuildRefusesVirtualCameras) {
+// The board's mirrorscand links no simulator: the virtual board is one error naming what
+// it would need.
+TEST(DevicesTest, FirmwareOnlyBuildRefusesTheVirtualBoard) {
   const std::string error = ErrorOf(VirtualBoard());
+  EXPECT_NE(error.find("drive.backend \"virtual\", cameras upper, lower \"virtual\" need the "
+                       "virtual cabinet's simulator"),
+            std::string::npos)
+      << error;
   EXPECT_NE(error.find("firmware-only build"), std::string::npos) << error;
 }
 #endif
+
+// Without the renderer a board with virtual cameras is refused before any device starts,
+// never run with something else in their place.
+TEST(DevicesTest, VirtualCamerasWithoutTheRendererAreRefused) {
+  const std::string error = ErrorOf(VirtualBoard(), DriveSimulatorOnly());
+  EXPECT_NE(error.find("cameras upper, lower \"virtual\" need the virtual cabinet's simulator"),
+            std::string::npos)
+      << error;
+  EXPECT_EQ(error.find("drive.backend"), std::string::npos) << error;
+}
 
 }  // namespace
 }  // namespace mirrorscan::board

@@ -28,12 +28,13 @@
 #include "boards/virtual/drive_sim/drive_sim.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "firmware/board/gpio_factory.h"
 #include "firmware/hal/clock.h"
-#include "firmware/hal/gpio_factory.h"
 #include "firmware/hal/modbus/modbus_slide_drive.h"
 #include "firmware/hal/replay/replay_camera.h"
 #include "firmware/hal/virtual/virtual_gpio_line.h"
 #include "firmware/hal/virtual/virtual_monostable.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan::scan {
 namespace {
@@ -137,9 +138,6 @@ bool Eventually(const std::function<bool()>& condition, milliseconds deadline = 
 class SequencerTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/sequencer_test.XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
-    dir_ = pattern;
     const fs::path frames = dir_ / "frames";
     fs::create_directories(frames);
     for (int k = 0; k < kFiles; ++k) {
@@ -166,13 +164,13 @@ class SequencerTest : public ::testing::Test {
     gpio.led = {23, false};
     gpio.button = {24, true};
     gpio.debounce_ms = 5;
-    hal::GpioLines lines = hal::MakeGpioLines(gpio, hal::GpioBackend::kVirtual);
+    board::GpioLines lines = board::MakeGpioLines(gpio, hal::GpioBackend::kVirtual);
     for (auto& laser : lines.lasers) {
       laser_lines_.push_back(dynamic_cast<hal::VirtualGpioLine*>(laser.line.get()));
     }
     button_line_ = dynamic_cast<hal::VirtualGpioLine*>(lines.button.line.get());
     interlock_ = dynamic_cast<hal::VirtualMonostable*>(lines.interlock.line.get());
-    gpio_ = hal::MakeGpioDevices(gpio, std::move(lines));
+    gpio_ = board::MakeGpioDevices(gpio, std::move(lines));
 
     for (int i = 0; i < 2; ++i) {
       auto camera = std::make_unique<FaultyCamera>(
@@ -206,7 +204,6 @@ class SequencerTest : public ::testing::Test {
     drive_.reset();
     sim_.reset();
     store_.reset();
-    fs::remove_all(dir_);
   }
 
   void MakeSequencer() {
@@ -309,12 +306,12 @@ class SequencerTest : public ::testing::Test {
     EXPECT_EQ(store_->Get(scan.id).frames, scan.frames);
   }
 
-  fs::path dir_;
+  const test_support::TempDir dir_{"sequencer_test"};
   std::unique_ptr<virtual_cabinet::DriveSim> sim_;
   std::unique_ptr<hal::ModbusSlideDrive> drive_;
   std::vector<hal::VirtualGpioLine*> laser_lines_;
   hal::VirtualGpioLine* button_line_ = nullptr;
-  hal::GpioDevices gpio_;
+  board::GpioDevices gpio_;
   std::vector<std::unique_ptr<FaultyCamera>> cameras_;
   std::unique_ptr<store::ScanStore> store_;
   SequencerOptions options_;

@@ -16,7 +16,10 @@
 #include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
-#include "firmware/service/test_scan_control.h"
+#include "tests/support/in_process_device.h"
+#include "tests/support/loopback.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan::service {
 namespace {
@@ -24,14 +27,9 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-constexpr char kToken[] = "virtual-dev-token-not-a-secret";
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+constexpr const char* kToken = test_support::kVirtualToken;
+using test_support::ExpectJsonError;
+using test_support::ReadFile;
 
 std::string Sha256Of(const std::string& bytes) {
   protocol::Sha256 sha;
@@ -43,49 +41,29 @@ class ApiServerTest : public ::testing::Test {
  protected:
   void SetUp() override { Start({}); }
 
+  // A new device in a new folder (dir_/device<n>).
   void Start(TestScanControl::Options scan_options, bool auth_reads = false) {
-    dir_ = fs::path(testing::TempDir()) /
-           ("api_server_test_" + std::to_string(::getpid()) + "_" +
-            std::string(testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    board_ =
-        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/board.json");
-    board_.service.auth_reads = auth_reads;
-    store_ = store::ScanStore::Open(dir_ / "scans");
-    control_ = std::make_unique<TestScanControl>(*store_, scan_options);
-    calibration_ = std::make_unique<CalibrationStore>(dir_ / "calibration.json");
-    ApiServerOptions options;
-    options.firmware_version = "9.8.7";
-    options.connections = limits_;
-    options.connections.write_timeout = io_timeout_;
+    device_.reset();
+    test_support::InProcessDeviceOptions options;
+    options.scan = scan_options;
+    options.auth_reads = auth_reads;
+    options.server.firmware_version = "9.8.7";
+    options.server.connections = limits_;
+    options.server.connections.write_timeout = io_timeout_;
     // A keep-alive line is how a vanished SSE client is noticed; short here so tests are.
-    options.keepalive_interval = std::chrono::milliseconds(200);
-    server_ =
-        std::make_unique<ApiServer>(*store_, *control_, board_, *calibration_, kToken, options);
-    port_ = server_->Start("127.0.0.1:0");
+    options.server.keepalive_interval = std::chrono::milliseconds(200);
+    device_dir_ = dir_ / ("device" + std::to_string(starts_++));
+    device_ = std::make_unique<test_support::InProcessDevice>(device_dir_, options);
+    store_ = device_->store.get();
+    control_ = device_->control.get();
+    calibration_ = device_->calibration.get();
+    server_ = device_->server.get();
+    port_ = device_->port;
   }
 
-  void Restart(TestScanControl::Options scan_options, bool auth_reads = false) {
-    server_.reset();
-    control_.reset();
-    Start(scan_options, auth_reads);
-  }
-
-  void TearDown() override {
-    server_.reset();
-    control_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
-  }
-
-  httplib::Client Client() const {
-    httplib::Client client("127.0.0.1", port_);
-    client.set_read_timeout(10, 0);
-    return client;
-  }
+  httplib::Client Client() const { return device_->Client(); }
   httplib::Headers Auth(const std::string& token = kToken) const {
-    return {{"Authorization", "Bearer " + token}};
+    return test_support::BearerAuth(token);
   }
 
   // Starts a scan through the API and returns its id.
@@ -103,22 +81,14 @@ class ApiServerTest : public ::testing::Test {
     return id;
   }
 
-  static void ExpectJsonError(const httplib::Result& res, int status, const std::string& words) {
-    ASSERT_TRUE(res);
-    EXPECT_EQ(res->status, status) << res->body;
-    EXPECT_EQ(res->get_header_value("X-Mirrorscan-Api-Version"), "1");
-    const json body = json::parse(res->body, nullptr, false);
-    ASSERT_TRUE(body.is_object()) << res->body;
-    EXPECT_EQ(body.value("error", ""), protocol::ErrorCode(status)) << res->body;
-    EXPECT_NE(body.value("message", "").find(words), std::string::npos) << res->body;
-  }
-
-  fs::path dir_;
-  board::BoardConfig board_;
-  std::unique_ptr<store::ScanStore> store_;
-  std::unique_ptr<TestScanControl> control_;
-  std::unique_ptr<CalibrationStore> calibration_;
-  std::unique_ptr<ApiServer> server_;
+  const test_support::TempDir dir_{"api_server_test"};
+  int starts_ = 0;
+  fs::path device_dir_;
+  std::unique_ptr<test_support::InProcessDevice> device_;
+  store::ScanStore* store_ = nullptr;
+  TestScanControl* control_ = nullptr;
+  CalibrationStore* calibration_ = nullptr;
+  ApiServer* server_ = nullptr;
   int port_ = 0;
   std::chrono::milliseconds io_timeout_{2000};
   ConnectionLimits limits_;
@@ -212,7 +182,7 @@ TEST_F(ApiServerTest, RangesResumeAndBadRangesGet416) {
 }
 
 TEST_F(ApiServerTest, FollowStreamsTheRunningScanUpToTheFooter) {
-  Restart({.frames = 60, .frame_interval = std::chrono::milliseconds(15), .peaks_per_frame = 100});
+  Start({.frames = 60, .frame_interval = std::chrono::milliseconds(15), .peaks_per_frame = 100});
   const std::string id = StartScan();
   // A plain download of a scan being written is refused and says what to do.
   ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/archive"), 409, "follow=1");
@@ -260,8 +230,7 @@ TEST_F(ApiServerTest, ReadersThatStallNeverSlowTheScan) {
   // Stalled clients would hold their streams for a minute; a scan that waited for them
   // would take that long.
   io_timeout_ = std::chrono::seconds(60);
-  Restart(
-      {.frames = 100, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 3500});
+  Start({.frames = 100, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 3500});
   const auto start = std::chrono::steady_clock::now();
   const std::string id = StartScan();
   std::vector<int> stalled;
@@ -281,7 +250,7 @@ TEST_F(ApiServerTest, ReadersThatStallNeverSlowTheScan) {
 }
 
 TEST_F(ApiServerTest, FollowResumesFromAnOffset) {
-  Restart({.frames = 30, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 50});
+  Start({.frames = 30, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 50});
   const std::string id = StartScan();
   std::string streamed;
   auto res = Client().Get("/api/v1/scans/" + id + "/archive?follow=1&offset=100",
@@ -307,7 +276,7 @@ TEST_F(ApiServerTest, FollowResumesFromAnOffset) {
 }
 
 TEST_F(ApiServerTest, EventsReportStateAndProgressThenUnsubscribe) {
-  Restart({.frames = 20, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 10});
+  Start({.frames = 20, .frame_interval = std::chrono::milliseconds(10), .peaks_per_frame = 10});
   std::string text;
   std::atomic<bool> subscribed{false};
   std::thread reader([&] {
@@ -414,7 +383,7 @@ TEST_F(ApiServerTest, EveryMutatingEndpointNeedsTheToken) {
 }
 
 TEST_F(ApiServerTest, ReadsNeedTheTokenWhenConfigured) {
-  Restart({}, /*auth_reads=*/true);
+  Start({}, /*auth_reads=*/true);
   const std::string id = CompletedScan();
   for (const std::string& path : std::vector<std::string>{
            "/api/v1/scans", "/api/v1/scans/" + id, "/api/v1/scans/" + id + "/archive",
@@ -504,12 +473,12 @@ TEST_F(ApiServerTest, CalibrationIsValidatedThenStored) {
   ExpectJsonError(
       Client().Put("/api/v1/calibration", Auth(), one_mirror.dump(), "application/json"), 400,
       "calibration: mirrors: expected two mirrors");
-  EXPECT_FALSE(fs::exists(dir_ / "calibration.json"));
+  EXPECT_FALSE(fs::exists(device_dir_ / "calibration.json"));
   auto put = Client().Put("/api/v1/calibration", Auth(), text, "application/json");
   ASSERT_TRUE(put);
   EXPECT_EQ(put->status, 200) << put->body;
   EXPECT_EQ(json::parse(put->body).at("sha256"), Sha256Of(text));
-  EXPECT_EQ(ReadFile(dir_ / "calibration.json"), text);
+  EXPECT_EQ(ReadFile(device_dir_ / "calibration.json"), text);
 
   auto get = Client().Get("/api/v1/calibration");
   ASSERT_TRUE(get);
@@ -543,7 +512,7 @@ TEST_F(ApiServerTest, CaptureReturnsAGrayImage) {
 }
 
 TEST_F(ApiServerTest, BusyDeviceRefusesWithConflict) {
-  Restart({.frames = 40, .frame_interval = std::chrono::milliseconds(20), .peaks_per_frame = 10});
+  Start({.frames = 40, .frame_interval = std::chrono::milliseconds(20), .peaks_per_frame = 10});
   const std::string id = StartScan();
   ExpectJsonError(Client().Post("/api/v1/scans", Auth(), "", "application/json"), 409, "running");
   ExpectJsonError(Client().Delete(("/api/v1/scans/" + id).c_str(), Auth()), 409, "");
@@ -564,74 +533,10 @@ TEST_F(ApiServerTest, UnknownEndpointIsAJson404) {
   ExpectJsonError(Client().Get("/"), 404, "no such endpoint");
 }
 
-// A socket connected to the server from `source` (any 127/8 address is loopback on Linux,
-// so tests can be several clients); -1 on failure. Reads time out after `timeout`.
-int ConnectFrom(int port, const char* source, std::chrono::milliseconds timeout) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return -1;
-  timeval tv{static_cast<time_t>(timeout.count() / 1000),
-             static_cast<suseconds_t>(timeout.count() % 1000 * 1000)};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
-  sockaddr_in from{};
-  from.sin_family = AF_INET;
-  ::inet_pton(AF_INET, source, &from.sin_addr);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&from), sizeof(from)) != 0 ||
-      ::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-// What the server sends until it closes or `timeout` passes without a byte.
-std::string ReadReply(int fd) {
-  std::string reply;
-  char buffer[4096];
-  for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0 && reply.size() < (1 << 20);) {
-    reply.append(buffer, static_cast<size_t>(n));
-  }
-  return reply;
-}
-
-// Sends `bytes`; false once the server has closed (EPIPE/ECONNRESET) or a send times out.
-bool SendAll(int fd, const std::string& bytes) {
-  size_t sent = 0;
-  while (sent < bytes.size()) {
-    const ssize_t n = ::send(fd, bytes.data() + sent, bytes.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) return false;
-    sent += static_cast<size_t>(n);
-  }
-  return true;
-}
-
-// Raw bytes to 127.0.0.1:port; reads whatever comes back (bounded by a short timeout).
-std::string RawExchange(int port, const std::string& request) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return "";
-  timeval timeout{0, 300000};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
-  ::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &timeout, sizeof(timeout));
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  std::string reply;
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0) {
-    ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
-    ::shutdown(fd, SHUT_WR);
-    char buffer[4096];
-    for (ssize_t n; (n = ::recv(fd, buffer, sizeof(buffer), 0)) > 0 && reply.size() < (1 << 20);) {
-      reply.append(buffer, static_cast<size_t>(n));
-    }
-  }
-  ::close(fd);
-  return reply;
-}
+using test_support::ConnectLoopback;
+using test_support::RawExchange;
+using test_support::ReceiveAll;
+using test_support::SendAll;
 
 // Requests built from valid pieces, then cut, mutated or replaced by random bytes.
 std::string RandomRequest(std::mt19937& rng, const std::string& id) {
@@ -682,7 +587,7 @@ std::string RandomRequest(std::mt19937& rng, const std::string& id) {
 TEST_F(ApiServerTest, SurvivesThousandsOfMalformedAndConcurrentRequests) {
   const std::string id = CompletedScan();
   const std::string archive_before = ReadFile(store_->Path(id));
-  const std::string meta_before = ReadFile(dir_ / "scans" / (id + ".json"));
+  const std::string meta_before = ReadFile(device_dir_ / "scans" / (id + ".json"));
   constexpr int kThreads = 4;
   constexpr int kRequestsPerThread = 750;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(40);
@@ -715,7 +620,7 @@ TEST_F(ApiServerTest, SurvivesThousandsOfMalformedAndConcurrentRequests) {
   ASSERT_TRUE(archive);
   EXPECT_EQ(archive->body, archive_before);
   EXPECT_EQ(ReadFile(store_->Path(id)), archive_before);
-  EXPECT_EQ(ReadFile(dir_ / "scans" / (id + ".json")), meta_before);
+  EXPECT_EQ(ReadFile(device_dir_ / "scans" / (id + ".json")), meta_before);
   EXPECT_EQ(store_->List().size(), 1u);
 }
 
@@ -725,11 +630,11 @@ TEST_F(ApiServerTest, BodiesWithoutATokenAreNeverRead) {
   for (const std::string& framing :
        {std::string("Transfer-Encoding: chunked"), std::string("Content-Length: 1000000000")}) {
     SCOPED_TRACE(framing);
-    const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+    const int fd = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
     ASSERT_GE(fd, 0);
     ASSERT_TRUE(SendAll(fd, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\n" + framing +
                                 "\r\nContent-Type: application/json\r\n\r\n"));
-    const std::string reply = ReadReply(fd);  // the server closes: the read ends
+    const std::string reply = ReceiveAll(fd);  // the server closes: the read ends
     ::close(fd);
     EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
     EXPECT_NE(reply.find("Connection: close"), std::string::npos) << reply;
@@ -737,12 +642,12 @@ TEST_F(ApiServerTest, BodiesWithoutATokenAreNeverRead) {
   // Without a token and without a body the answer is 401 too, not "malformed".
   ExpectJsonError(Client().Post("/api/v1/scans", "", ""), 401, "missing bearer token");
   // Expect: 100-continue is answered with the refusal, not with "100 Continue".
-  const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  const int fd = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
   ASSERT_GE(fd, 0);
   ASSERT_TRUE(SendAll(fd,
                       "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nContent-Length: "
                       "100\r\nExpect: 100-continue\r\n\r\n"));
-  const std::string reply = ReadReply(fd);
+  const std::string reply = ReceiveAll(fd);
   ::close(fd);
   EXPECT_EQ(reply.rfind("HTTP/1.1 401", 0), 0u) << reply;
   EXPECT_FALSE(calibration_->Get().has_value());
@@ -750,15 +655,15 @@ TEST_F(ApiServerTest, BodiesWithoutATokenAreNeverRead) {
 
 TEST_F(ApiServerTest, BodiesOverTheLimitAreRefusedBeforeOrWhileRead) {
   // A declared length over the limit: 413 at once, with the token.
-  const int fd = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  const int fd = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
   ASSERT_GE(fd, 0);
   ASSERT_TRUE(SendAll(fd, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
                               std::string(kToken) + "\r\nContent-Length: 1000000000\r\n\r\n"));
-  std::string reply = ReadReply(fd);
+  std::string reply = ReceiveAll(fd);
   ::close(fd);
   EXPECT_EQ(reply.rfind("HTTP/1.1 413", 0), 0u) << reply;
   // Chunked, with the token: cut once the body passes 4 MiB, not read to its end.
-  const int chunked = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  const int chunked = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
   ASSERT_GE(chunked, 0);
   ASSERT_TRUE(
       SendAll(chunked, "PUT /api/v1/calibration HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
@@ -766,7 +671,7 @@ TEST_F(ApiServerTest, BodiesOverTheLimitAreRefusedBeforeOrWhileRead) {
   const std::string chunk = "10000\r\n" + std::string(0x10000, ' ') + "\r\n";
   size_t sent = 0;
   while (sent < (64u << 20) && SendAll(chunked, chunk)) sent += 0x10000;
-  reply = ReadReply(chunked);
+  reply = ReceiveAll(chunked);
   ::close(chunked);
   // 4 MiB read, then at most 16 MiB discarded while the refusal is read, plus what the
   // loopback socket buffers hold: never the whole 64 MiB.
@@ -774,24 +679,24 @@ TEST_F(ApiServerTest, BodiesOverTheLimitAreRefusedBeforeOrWhileRead) {
   EXPECT_GE(sent, 4u << 20);
   EXPECT_EQ(reply.rfind("HTTP/1.1 413", 0), 0u) << reply.substr(0, 200);
   // No Content-Length and no Transfer-Encoding (`curl -X POST`): no body, answered at once.
-  const int bare = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  const int bare = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
   ASSERT_GE(bare, 0);
   const auto bare_start = std::chrono::steady_clock::now();
   ASSERT_TRUE(SendAll(bare, "POST /api/v1/scans HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
                                 std::string(kToken) + "\r\nConnection: close\r\n\r\n"));
-  reply = ReadReply(bare);
+  reply = ReceiveAll(bare);
   ::close(bare);
   EXPECT_EQ(reply.rfind("HTTP/1.1 201", 0), 0u) << reply;
   EXPECT_LT(std::chrono::steady_clock::now() - bare_start, std::chrono::seconds(2));
   control_->Join();
   // A small chunked body with the token is read whole.
-  const int good = ConnectFrom(port_, "127.0.0.1", std::chrono::milliseconds(3000));
+  const int good = ConnectLoopback(port_, "127.0.0.1", std::chrono::milliseconds(3000));
   ASSERT_GE(good, 0);
   ASSERT_TRUE(SendAll(good, "POST /api/v1/scans HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
                                 std::string(kToken) +
                                 "\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n\r\n"
                                 "2\r\n{}\r\n0\r\n\r\n"));
-  reply = ReadReply(good);
+  reply = ReceiveAll(good);
   ::close(good);
   EXPECT_EQ(reply.rfind("HTTP/1.1 201", 0), 0u) << reply;
   control_->Join();
@@ -823,7 +728,7 @@ TEST_F(ApiServerTest, AbortStopsTheRunningScan) {
                   "no scan is running");
   ExpectJsonError(Client().Post("/api/v1/scans/current/abort", "", "application/json"), 401,
                   "missing bearer token");
-  Restart({.frames = 2000, .frame_interval = std::chrono::milliseconds(5)});
+  Start({.frames = 2000, .frame_interval = std::chrono::milliseconds(5)});
   const std::string id = StartScan();
   auto res = Client().Post("/api/v1/scans/current/abort", Auth(), R"({"reason":"operator"})",
                            "application/json");
@@ -852,16 +757,16 @@ TEST_F(ApiServerTest, ConnectionsArePerAddressBoundedAndDeadlined) {
   limits_.per_client = 4;
   limits_.total = 12;
   limits_.header_timeout = std::chrono::milliseconds(1000);
-  Restart({});
+  Start({});
   // One address holding idle sockets: the fifth is refused at once with a 503.
   std::vector<int> idle;
   for (int i = 0; i < 4; ++i)
-    idle.push_back(ConnectFrom(port_, "127.0.0.2", std::chrono::milliseconds(3000)));
+    idle.push_back(ConnectLoopback(port_, "127.0.0.2", std::chrono::milliseconds(3000)));
   for (const int fd : idle) ASSERT_GE(fd, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(100));  // all four admitted
-  const int fifth = ConnectFrom(port_, "127.0.0.2", std::chrono::milliseconds(3000));
+  const int fifth = ConnectLoopback(port_, "127.0.0.2", std::chrono::milliseconds(3000));
   ASSERT_GE(fifth, 0);
-  const std::string refused = ReadReply(fifth);
+  const std::string refused = ReceiveAll(fifth);
   ::close(fifth);
   EXPECT_EQ(refused.rfind("HTTP/1.1 503", 0), 0u) << refused;
   // Other addresses fill the total; a new client still gets served (the longest idle
@@ -869,7 +774,7 @@ TEST_F(ApiServerTest, ConnectionsArePerAddressBoundedAndDeadlined) {
   std::vector<int> others;
   for (const char* source : {"127.0.0.3", "127.0.0.4"}) {
     for (int i = 0; i < 4; ++i)
-      others.push_back(ConnectFrom(port_, source, std::chrono::milliseconds(3000)));
+      others.push_back(ConnectLoopback(port_, source, std::chrono::milliseconds(3000)));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   const auto start = std::chrono::steady_clock::now();
@@ -878,7 +783,7 @@ TEST_F(ApiServerTest, ConnectionsArePerAddressBoundedAndDeadlined) {
   EXPECT_EQ(status->status, 200);
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::milliseconds(900));
   // A trickling client (a header byte every 200 ms) is cut at the header deadline.
-  const int trickle = ConnectFrom(port_, "127.0.0.5", std::chrono::milliseconds(3000));
+  const int trickle = ConnectLoopback(port_, "127.0.0.5", std::chrono::milliseconds(3000));
   ASSERT_GE(trickle, 0);
   const auto trickle_start = std::chrono::steady_clock::now();
   const std::string request = "GET /api/v1/status HTTP/1.1\r\nX-Slow: " + std::string(100, 'a');

@@ -11,7 +11,9 @@
 
 #include "common/protocol/protocol.h"
 #include "firmware/service/api_server.h"
-#include "firmware/service/test_scan_control.h"
+#include "tests/support/in_process_device.h"
+#include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan::service {
 namespace {
@@ -19,63 +21,38 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-constexpr char kToken[] = "virtual-dev-token-not-a-secret";
+using test_support::ExpectJsonError;
+using test_support::ReadFile;
 const std::string kPng = std::string("\x89PNG\r\n\x1a\n", 8) + std::string(3000, '\x01');
 const std::string kPly =
     "ply\nformat binary_little_endian 1.0\nend_header\n" + std::string(5000, 'x');
-
-std::string ReadFile(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
 
 class ResultsApiTest : public ::testing::Test {
  protected:
   void SetUp() override { Start(false); }
 
+  // A new device in a new folder (dir_/device<n>), serving a small page.
   void Start(bool open_reads) {
-    dir_ = fs::path(testing::TempDir()) /
-           ("results_api_test_" + std::to_string(::getpid()) + "_" +
-            std::string(testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    board_ =
-        board::BoardConfig::Load(fs::path(MIRRORSCAN_SOURCE_DIR) / "boards/virtual/board.json");
-    board_.service.auth_reads = !open_reads;
-    store_ = store::ScanStore::Open(dir_ / "scans");
-    control_ = std::make_unique<TestScanControl>(*store_, TestScanControl::Options{});
-    calibration_ = std::make_unique<CalibrationStore>(dir_ / "calibration.json");
-    fs::create_directories(dir_ / "web");
-    std::ofstream(dir_ / "web" / "index.html") << "<!doctype html><title>mirrorscan</title>";
-    std::ofstream(dir_ / "web" / "app.js") << "console.log('page');";
-    ApiServerOptions options;
-    options.web_dir = dir_ / "web";
-    options.preview_interval = std::chrono::milliseconds(60000);
-    server_ =
-        std::make_unique<ApiServer>(*store_, *control_, board_, *calibration_, kToken, options);
-    port_ = server_->Start("127.0.0.1:0");
-  }
-  void TearDown() override {
-    server_.reset();
-    control_.reset();
-    store_.reset();
-    fs::remove_all(dir_);
+    device_.reset();
+    device_dir_ = dir_ / ("device" + std::to_string(starts_++));
+    fs::create_directories(device_dir_ / "web");
+    std::ofstream(device_dir_ / "web" / "index.html") << "<!doctype html><title>mirrorscan</title>";
+    std::ofstream(device_dir_ / "web" / "app.js") << "console.log('page');";
+    test_support::InProcessDeviceOptions options;
+    options.auth_reads = !open_reads;
+    options.server.web_dir = device_dir_ / "web";
+    options.server.preview_interval = std::chrono::milliseconds(60000);
+    device_ = std::make_unique<test_support::InProcessDevice>(device_dir_, options);
   }
 
-  httplib::Client Client() const {
-    httplib::Client client("127.0.0.1", port_);
-    client.set_read_timeout(10, 0);
-    return client;
-  }
-  static httplib::Headers Auth(const std::string& token = kToken) {
-    return {{"Authorization", "Bearer " + token}};
+  httplib::Client Client() const { return device_->Client(); }
+  static httplib::Headers Auth(const std::string& token = test_support::kVirtualToken) {
+    return test_support::BearerAuth(token);
   }
   std::string CompletedScan() {
     auto res = Client().Post("/api/v1/scans", Auth(), "", "application/json");
     EXPECT_TRUE(res && res->status == 201);
-    control_->Join();
+    device_->control->Join();
     return json::parse(res->body).at("id").get<std::string>();
   }
   httplib::Result Put(const std::string& id, const std::string& name, const std::string& body,
@@ -83,22 +60,11 @@ class ResultsApiTest : public ::testing::Test {
     return Client().Put("/api/v1/scans/" + id + "/results/" + name, headers, body,
                         "application/octet-stream");
   }
-  static void ExpectError(const httplib::Result& res, int status, const std::string& words) {
-    ASSERT_TRUE(res);
-    EXPECT_EQ(res->status, status) << res->body;
-    const json body = json::parse(res->body, nullptr, false);
-    ASSERT_TRUE(body.is_object()) << res->body;
-    EXPECT_EQ(body.value("error", ""), protocol::ErrorCode(status)) << res->body;
-    EXPECT_NE(body.value("message", "").find(words), std::string::npos) << res->body;
-  }
 
-  fs::path dir_;
-  board::BoardConfig board_;
-  std::unique_ptr<store::ScanStore> store_;
-  std::unique_ptr<TestScanControl> control_;
-  std::unique_ptr<CalibrationStore> calibration_;
-  std::unique_ptr<ApiServer> server_;
-  int port_ = 0;
+  const test_support::TempDir dir_{"results_api_test"};
+  int starts_ = 0;
+  fs::path device_dir_;
+  std::unique_ptr<test_support::InProcessDevice> device_;
 };
 
 TEST_F(ResultsApiTest, PutResultsAreListedAndServedByteForByte) {
@@ -135,7 +101,7 @@ TEST_F(ResultsApiTest, PutResultsAreListedAndServedByteForByte) {
   ASSERT_TRUE(mesh && mesh->status == 200);
   EXPECT_EQ(mesh->body, kPly);
   // Stored beside the scan in the data directory.
-  EXPECT_EQ(ReadFile(dir_ / "scans" / (id + ".results") / "summary.json"), summary);
+  EXPECT_EQ(ReadFile(device_dir_ / "scans" / (id + ".results") / "summary.json"), summary);
   // A second upload replaces the first whole.
   ASSERT_EQ(Put(id, "summary.json", R"({"ok": false})")->status, 200);
   EXPECT_EQ(Client().Get("/api/v1/scans/" + id + "/results/summary.json", Auth())->body,
@@ -144,13 +110,13 @@ TEST_F(ResultsApiTest, PutResultsAreListedAndServedByteForByte) {
 
 TEST_F(ResultsApiTest, PutNeedsTheTokenAndReadsNeedItOnThisBoard) {
   const std::string id = CompletedScan();
-  ExpectError(Put(id, "mesh.ply", kPly, {}), 401, "missing bearer token");
-  ExpectError(Put(id, "mesh.ply", kPly, Auth("wrong-token-wrong-token-wrong-token")), 403,
-              "wrong bearer token");
+  ExpectJsonError(Put(id, "mesh.ply", kPly, {}), 401, "missing bearer token");
+  ExpectJsonError(Put(id, "mesh.ply", kPly, Auth("wrong-token-wrong-token-wrong-token")), 403,
+                  "wrong bearer token");
   ASSERT_EQ(Put(id, "mesh.ply", kPly)->status, 200);
-  ExpectError(Client().Get("/api/v1/scans/" + id + "/results"), 401, "missing bearer token");
-  ExpectError(Client().Get("/api/v1/scans/" + id + "/results/mesh.ply"), 401,
-              "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/results"), 401, "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/results/mesh.ply"), 401,
+                  "missing bearer token");
 }
 
 TEST_F(ResultsApiTest, OnlyTheListedNamesAndMatchingContentAreStored) {
@@ -161,26 +127,26 @@ TEST_F(ResultsApiTest, OnlyTheListedNamesAndMatchingContentAreStored) {
     ASSERT_TRUE(res) << name;
     EXPECT_TRUE(res->status == 404 || res->status == 400) << name << ": " << res->status;
   }
-  ExpectError(Put(id, "preview-back.png", "GIF89a not a png"), 400, "not a PNG");
-  ExpectError(Put(id, "mesh.ply", "solid stl\n"), 400, "not a PLY");
-  ExpectError(Put(id, "measurements.json", "[1, 2]"), 400, "not a JSON object");
-  ExpectError(Put(id, "measurements.json", "{oops"), 400, "not a JSON object");
-  ExpectError(Put(id, "summary.json", ""), 400, "expected the result's bytes");
-  ExpectError(Put("20000101T000000Z-0001", "mesh.ply", kPly), 404, "no scan");
-  ExpectError(Put("not-an-id", "mesh.ply", kPly), 400, "not a scan id");
+  ExpectJsonError(Put(id, "preview-back.png", "GIF89a not a png"), 400, "not a PNG");
+  ExpectJsonError(Put(id, "mesh.ply", "solid stl\n"), 400, "not a PLY");
+  ExpectJsonError(Put(id, "measurements.json", "[1, 2]"), 400, "not a JSON object");
+  ExpectJsonError(Put(id, "measurements.json", "{oops"), 400, "not a JSON object");
+  ExpectJsonError(Put(id, "summary.json", ""), 400, "expected the result's bytes");
+  ExpectJsonError(Put("20000101T000000Z-0001", "mesh.ply", kPly), 404, "no scan");
+  ExpectJsonError(Put("not-an-id", "mesh.ply", kPly), 400, "not a scan id");
   // Nothing of the refused uploads was kept.
   auto list = Client().Get("/api/v1/scans/" + id + "/results", Auth());
   ASSERT_TRUE(list);
   EXPECT_TRUE(json::parse(list->body).at("results").empty()) << list->body;
   size_t files = 0;
   std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir_ / "scans" / (id + ".results"), ec)) {
+  for (const auto& entry : fs::directory_iterator(device_dir_ / "scans" / (id + ".results"), ec)) {
     (void)entry;
     ++files;
   }
   EXPECT_EQ(files, 0u);
-  ExpectError(Client().Get("/api/v1/scans/" + id + "/results/mesh.ply", Auth()), 404,
-              "no result mesh.ply");
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/results/mesh.ply", Auth()), 404,
+                  "no result mesh.ply");
 }
 
 TEST_F(ResultsApiTest, EachNameHasItsSizeLimit) {
@@ -188,14 +154,15 @@ TEST_F(ResultsApiTest, EachNameHasItsSizeLimit) {
   const protocol::ResultKind* json_kind = protocol::FindResultKind("summary.json");
   ASSERT_NE(json_kind, nullptr);
   // Declared too large: 413 before the body is read.
-  ExpectError(Put(id, "summary.json", "{\"a\":\"" + std::string(json_kind->max_bytes, 'a') + "\"}"),
-              413, "too large");
+  ExpectJsonError(
+      Put(id, "summary.json", "{\"a\":\"" + std::string(json_kind->max_bytes, 'a') + "\"}"), 413,
+      "too large");
   // A mesh over the general 4 MiB body limit but within its own is stored.
   const std::string big_mesh = kPly + std::string(5u << 20, 'v');
   auto res = Put(id, "mesh.ply", big_mesh);
   ASSERT_TRUE(res);
   EXPECT_EQ(res->status, 200) << res->body;
-  EXPECT_EQ(fs::file_size(dir_ / "scans" / (id + ".results") / "mesh.ply"), big_mesh.size());
+  EXPECT_EQ(fs::file_size(device_dir_ / "scans" / (id + ".results") / "mesh.ply"), big_mesh.size());
   // Chunked past the limit: cut as it passes it.
   httplib::Client client = Client();
   const std::string piece(64 << 10, ' ');
@@ -218,7 +185,7 @@ TEST_F(ResultsApiTest, EachNameHasItsSizeLimit) {
   // 1 MiB read, then at most 16 MiB discarded while the refusal is read, plus what the
   // socket buffers hold: never all 64 MiB.
   EXPECT_LT(sent, 40u << 20);
-  EXPECT_FALSE(fs::exists(dir_ / "scans" / (id + ".results") / "measurements.json"));
+  EXPECT_FALSE(fs::exists(device_dir_ / "scans" / (id + ".results") / "measurements.json"));
 }
 
 TEST_F(ResultsApiTest, ResultsAreDeletedWithTheScan) {
@@ -226,25 +193,23 @@ TEST_F(ResultsApiTest, ResultsAreDeletedWithTheScan) {
   ASSERT_EQ(Put(id, "mesh.ply", kPly)->status, 200);
   auto res = Client().Delete("/api/v1/scans/" + id, Auth());
   ASSERT_TRUE(res && res->status == 200);
-  EXPECT_FALSE(fs::exists(dir_ / "scans" / (id + ".results")));
-  ExpectError(Client().Get("/api/v1/scans/" + id + "/results", Auth()), 404, "no scan");
+  EXPECT_FALSE(fs::exists(device_dir_ / "scans" / (id + ".results")));
+  ExpectJsonError(Client().Get("/api/v1/scans/" + id + "/results", Auth()), 404, "no scan");
 }
 
 TEST_F(ResultsApiTest, AScanBeingWrittenTakesNoResults) {
-  server_.reset();  // before the control it holds; both replaced by a slow one
-  control_.reset();
+  device_->server.reset();  // before the control it holds; both replaced by a slow one
   TestScanControl::Options slow;
   slow.frames = 200;
   slow.frame_interval = std::chrono::milliseconds(10);
-  control_ = std::make_unique<TestScanControl>(*store_, slow);
-  server_ = std::make_unique<ApiServer>(*store_, *control_, board_, *calibration_, kToken);
-  port_ = server_->Start("127.0.0.1:0");
+  device_->control = std::make_unique<TestScanControl>(*device_->store, slow);
+  device_->Serve({});
   auto start = Client().Post("/api/v1/scans", Auth(), "", "application/json");
   ASSERT_TRUE(start && start->status == 201);
   const std::string id = json::parse(start->body).at("id").get<std::string>();
-  ExpectError(Put(id, "mesh.ply", kPly), 409, "being written");
-  control_->Abort("test");
-  control_->Join();
+  ExpectJsonError(Put(id, "mesh.ply", kPly), 409, "being written");
+  device_->control->Abort("test");
+  device_->control->Join();
 }
 
 TEST_F(ResultsApiTest, ThePageIsServedWithoutTheTokenAndRunsOnlyItsOwnScripts) {
@@ -264,7 +229,7 @@ TEST_F(ResultsApiTest, ThePageIsServedWithoutTheTokenAndRunsOnlyItsOwnScripts) {
     EXPECT_EQ(res->status, 404) << path;
   }
   // The API behind it still needs the token.
-  ExpectError(Client().Get("/api/v1/scans"), 401, "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/scans"), 401, "missing bearer token");
 }
 
 TEST_F(ResultsApiTest, ThePreviewIsAPngWithThePeakCountAndSharedBetweenViewers) {
@@ -279,21 +244,18 @@ TEST_F(ResultsApiTest, ThePreviewIsAPngWithThePeakCountAndSharedBetweenViewers) 
   auto again = Client().Get("/api/v1/preview?camera=upper", Auth());
   ASSERT_TRUE(again);
   EXPECT_EQ(again->body, res->body);
-  ExpectError(Client().Get("/api/v1/preview?camera=side", Auth()), 400, "no camera");
-  ExpectError(Client().Get("/api/v1/preview?camera=upper&lasers=2", Auth()), 400, "lasers");
-  ExpectError(Client().Get("/api/v1/preview?camera=upper"), 401, "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/preview?camera=side", Auth()), 400, "no camera");
+  ExpectJsonError(Client().Get("/api/v1/preview?camera=upper&lasers=2", Auth()), 400, "lasers");
+  ExpectJsonError(Client().Get("/api/v1/preview?camera=upper"), 401, "missing bearer token");
 }
 
 TEST_F(ResultsApiTest, APreviewWithLasersNeedsTheTokenEvenWithOpenReads) {
-  server_.reset();
-  control_.reset();
-  store_.reset();
-  fs::remove_all(dir_);
   Start(/*open_reads=*/true);
   auto dark = Client().Get("/api/v1/preview?camera=lower");
   ASSERT_TRUE(dark);
   EXPECT_EQ(dark->status, 200);
-  ExpectError(Client().Get("/api/v1/preview?camera=lower&lasers=1"), 401, "missing bearer token");
+  ExpectJsonError(Client().Get("/api/v1/preview?camera=lower&lasers=1"), 401,
+                  "missing bearer token");
   auto lit = Client().Get("/api/v1/preview?camera=lower&lasers=1", Auth());
   ASSERT_TRUE(lit);
   EXPECT_EQ(lit->status, 200);

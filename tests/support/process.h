@@ -1,6 +1,6 @@
 #pragma once
 // What the cross-module tests need to run the real programs: a child process with its
-// output in a log file, shell commands with their output, files, free loopback ports.
+// output in a log file, shell commands with their output, files.
 
 #include <sys/resource.h>
 #include <sys/types.h>
@@ -16,13 +16,6 @@ namespace mirrorscan::test_support {
 
 // The whole file ("" when it cannot be read).
 std::string ReadFile(const std::filesystem::path& path);
-
-// A loopback TCP port nobody listens on right now.
-int FreeLoopbackPort();
-
-// An empty directory <name>_<pid> under the system's temporary directory (emptied first
-// if a previous run left it).
-std::filesystem::path FreshTempDir(const std::string& name);
 
 struct CommandResult {
   int exit_code = -1;  // 128 + signal when killed

@@ -1,4 +1,4 @@
-#include "firmware/hal/gpio_factory.h"
+#include "firmware/board/gpio_factory.h"
 
 #include <string>
 #include <utility>
@@ -8,8 +8,22 @@
 #include "firmware/hal/virtual/virtual_gpio_line.h"
 #include "firmware/hal/virtual/virtual_monostable.h"
 
-namespace mirrorscan::hal {
+namespace mirrorscan::board {
 namespace {
+
+using hal::ActiveLevelLine;
+using hal::GpioBackend;
+using hal::GpioButton;
+using hal::GpioConfig;
+using hal::GpiodLine;
+using hal::GpioLine;
+using hal::GpioLaserBank;
+using hal::GpioLaserInterlock;
+using hal::GpioLed;
+using hal::GpioLineConfig;
+using hal::VirtualGpioLine;
+using hal::VirtualLineStates;
+using hal::VirtualMonostable;
 
 std::unique_ptr<GpioLine> MakeLine(const GpioConfig& config, GpioBackend backend,
                                    const GpioLineConfig& line, bool output,
@@ -73,4 +87,4 @@ GpioDevices MakeGpioDevices(const GpioConfig& config, GpioLines lines) {
   return d;
 }
 
-}  // namespace mirrorscan::hal
+}  // namespace mirrorscan::board

@@ -1,4 +1,4 @@
-#include "firmware/hal/virtual/virtual_camera.h"
+#include "firmware/board/virtual/virtual_camera.h"
 
 #include <atomic>
 #include <chrono>

@@ -1,4 +1,4 @@
-#include "firmware/hal/gpio_factory.h"
+#include "firmware/board/gpio_factory.h"
 
 #include <string>
 
@@ -7,8 +7,13 @@
 #include "firmware/hal/hardware_error.h"
 #include "firmware/hal/virtual/virtual_gpio_line.h"
 
-namespace mirrorscan::hal {
+namespace mirrorscan::board {
 namespace {
+
+using hal::GpioBackend;
+using hal::GpioConfig;
+using hal::HardwareError;
+using hal::VirtualGpioLine;
 
 GpioConfig Config() {
   GpioConfig c;
@@ -61,4 +66,4 @@ TEST(GpioFactoryTest, GpiodFailureIsAnErrorNotAFallback) {
 }
 
 }  // namespace
-}  // namespace mirrorscan::hal
+}  // namespace mirrorscan::board

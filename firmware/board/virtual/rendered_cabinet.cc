@@ -1,13 +1,12 @@
-// The host build's virtual cabinet: the scene's renderer behind the board's virtual
-// cameras.
-#include <memory>
+#include "firmware/board/virtual/rendered_cabinet.h"
+
+#include <string>
 #include <utility>
 
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
-#include "firmware/board/devices.h"
+#include "firmware/board/virtual/virtual_camera.h"
 #include "firmware/hal/hardware_error.h"
-#include "firmware/hal/virtual/virtual_camera.h"
 
 namespace mirrorscan::board {
 namespace {
@@ -49,8 +48,8 @@ class RenderedCabinet final : public VirtualCabinet {
 
 }  // namespace
 
-std::unique_ptr<VirtualCabinet> OpenVirtualCabinet(const std::filesystem::path& scene,
-                                                   double sweep_start_mm) {
+std::unique_ptr<VirtualCabinet> OpenRenderedCabinet(const std::filesystem::path& scene,
+                                                    double sweep_start_mm) {
   return std::make_unique<RenderedCabinet>(virtual_cabinet::Scene::Load(scene), sweep_start_mm);
 }
 
