@@ -13,8 +13,8 @@
 # Run by ctest (firmware_layering, firmware/CMakeLists.txt):
 #   cmake -DSOURCE_DIR=<source tree> -DLINKS_FILE=<build>/firmware_links.txt
 #         -P CheckFirmwareLayering.cmake
-# LINKS_FILE lists every firmware target as "target|folder|test or product|libraries",
-# written at configure time. Fails with one line per offence.
+# LINKS_FILE lists every firmware target as "target|folder|test or product|libraries"
+# (mirrorscan_write_target_links), written at configure time. Fails with one line per offence.
 
 cmake_minimum_required(VERSION 3.25)
 
@@ -99,15 +99,11 @@ if(NOT EXISTS ${LINKS_FILE})
 endif()
 file(STRINGS ${LINKS_FILE} _links)
 foreach(_line IN LISTS _links)
-  string(REPLACE "|" ";" _fields "${_line}")
-  list(GET _fields 0 _target)
-  list(GET _fields 1 _folder)
-  list(GET _fields 2 _kind)
-  list(LENGTH _fields _count)
-  set(_libraries "")
-  if(_count GREATER 3)
-    list(GET _fields 3 _libraries)
-  endif()
+  string(REGEX MATCH "^([^|]+)\\|([^|]*)\\|([^|]+)\\|(.*)$" _ "${_line}")
+  set(_target ${CMAKE_MATCH_1})
+  set(_folder ${CMAKE_MATCH_2})
+  set(_kind ${CMAKE_MATCH_3})
+  set(_libraries "${CMAKE_MATCH_4}")
   set(_index 0)
   foreach(_library IN LISTS _hardware_libraries)
     list(GET _hardware_library_backends ${_index} _backend)

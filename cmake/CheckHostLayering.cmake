@@ -5,8 +5,9 @@
 #
 # Run by ctest (host_layering, host/CMakeLists.txt):
 #   cmake -DSOURCE_DIR=<source tree> -DLINKS_FILE=<build>/host_links.txt -P CheckHostLayering.cmake
-# LINKS_FILE lists every non-test host target with its link libraries, one "target: libs"
-# line each, written at configure time. Fails with one line per offence.
+# LINKS_FILE lists every host target as "target|folder|test or product|libraries"
+# (mirrorscan_write_target_links), written at configure time; tests are not checked.
+# Fails with one line per offence.
 
 cmake_minimum_required(VERSION 3.25)
 
@@ -33,10 +34,11 @@ if(NOT EXISTS ${LINKS_FILE})
 endif()
 file(STRINGS ${LINKS_FILE} _links)
 foreach(_line IN LISTS _links)
-  string(REGEX MATCH "^([^:]+): (.*)$" _ ${_line})
+  string(REGEX MATCH "^([^|]+)\\|[^|]*\\|([^|]+)\\|(.*)$" _ "${_line}")
   set(_target ${CMAKE_MATCH_1})
-  set(_libraries ${CMAKE_MATCH_2})
-  if(_target IN_LIST _allowed_targets)
+  set(_kind ${CMAKE_MATCH_2})
+  set(_libraries "${CMAKE_MATCH_3}")
+  if(_kind STREQUAL "test" OR _target IN_LIST _allowed_targets)
     continue()
   endif()
   string(REGEX MATCHALL "mirrorscan_virtual_[A-Za-z0-9_]+" _virtual "${_libraries}")

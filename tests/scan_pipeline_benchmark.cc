@@ -165,9 +165,9 @@ void BM_SequencerScan(benchmark::State& state) {
     config.cameras[c].backend = board::CameraBackend::kReplay;
     config.cameras[c].path = frames_dir;
   }
-  board::DeviceOptions options;
-  options.simulator = board::LinkedSimulator();
-  board::BoardDevices devices = board::MakeBoardDevices(config, options);
+  board::DeviceOptions device_options;
+  device_options.simulator = board::LinkedSimulator();
+  board::BoardDevices devices = board::MakeBoardDevices(config, device_options);
   auto store = store::ScanStore::Open(dir / "data");
   scan::SequencerDevices sd;
   for (size_t i = 0; i < 2; ++i)
