@@ -516,7 +516,8 @@ void BodyField::Impl::PlacePrimitives() {
   for (int side : {-1, 1}) {
     const unsigned group = side > 0 ? kLeftArm : kRightArm;
     const int i = side > 0 ? 0 : 1;
-    const Vector3d joint(side * shoulder_half, 0.1 * chest.b,
+    // A heavy body's chest is wider than its shoulders' skeleton: the arm hangs outside it.
+    const Vector3d joint(side * std::max(shoulder_half, 0.9 * chest.a), 0.1 * chest.b,
                          Proportions::kAcromion * H - 0.026 * H);
     const Vector3d down(side * std::sin(alpha), 0, -std::cos(alpha));
     const Vector3d elbow = joint + upper_len * down;
@@ -646,8 +647,8 @@ void BodyField::Impl::Solve(int rounds) {
                 *target.scale = scale;
                 Build();
                 const double z = stations[target.station].z;
-                return OutlinePerimeter(Vector3d(0, section_c(z), z), ex, ey,
-                                        0.5 * target.girth, groups) -
+                return OutlinePerimeter(Vector3d(0, section_c(z), z), ex, ey, 0.5 * target.girth,
+                                        groups) -
                        target.girth;
               },
               *target.scale);

@@ -176,6 +176,15 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
   nlohmann::json out;
   const Vector3d up = marks.up;
   auto at_height = [&](double z) { return marks.world_from_upright * Vector3d(0, 0, z); };
+  // Where the left arm's axis (shoulder to elbow, then on to the wrist) crosses the
+  // horizontal plane through `point`: a torso section holding it has merged with the arm.
+  auto arm_at = [&](const Vector3d& point) {
+    const Vector3d& a = marks.shoulder_joint[0];
+    const Vector3d& b =
+        point.z() > marks.elbow_joint[0].z() ? marks.elbow_joint[0] : marks.wrist_joint[0];
+    const Vector3d& from = point.z() > marks.elbow_joint[0].z() ? a : marks.elbow_joint[0];
+    return Vector3d(from + (point.z() - from.z()) / (b.z() - from.z()) * (b - from));
+  };
   // A girth: the tape around the loop holding `center` in the plane through it with that
   // normal; withheld when that loop also holds `apart` (merged with another part).
   auto girth = [&](const char* key, const char* definition, const Vector3d& center,
@@ -208,14 +217,14 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
   girth("chest_girth",
         "horizontal girth at the bust points (women) or over the chest's fullest part (men), "
         "under the armpits, arms away",
-        at_height(marks.chest_z), up);
+        at_height(marks.chest_z), up, arm_at(at_height(marks.chest_z)));
   girth("underbust_girth", "horizontal girth just below the breasts", at_height(marks.underbust_z),
-        up);
+        up, arm_at(at_height(marks.underbust_z)));
   girth("waist_girth",
         "horizontal girth at the natural waist, between the lowest rib and the iliac crest",
-        at_height(marks.waist_z), up);
+        at_height(marks.waist_z), up, arm_at(at_height(marks.waist_z)));
   girth("hip_girth", "horizontal girth at the greatest protrusion of the buttocks",
-        at_height(marks.hip_z), up);
+        at_height(marks.hip_z), up, arm_at(at_height(marks.hip_z)));
   auto on_leg = [&](int side, double z) {
     // The hip-knee or knee-ankle line at that height.
     const Vector3d& hip = marks.hip_joint[side];
@@ -227,7 +236,7 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
     const double t = (world.z() - a.z()) / (b.z() - a.z());
     return Vector3d(a + t * (b - a));
   };
-  const Vector3d vertical = Vector3d::UnitZ();
+  const Vector3d& vertical = up;  // the legs lean with the body
   girth("thigh_girth",
         "horizontal girth of the thigh at its highest part, just below the gluteal fold",
         on_leg(0, marks.thigh_z), vertical, on_leg(1, marks.thigh_z));
@@ -278,13 +287,7 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
         "distance across the back between the posterior armpit folds, over the surface";
     const Vector3d center = at_height(marks.back_width_z);
     const auto loop = LoopAround(mesh, center, up);
-    auto arm_at = [&](int side) {
-      const Vector3d& a = marks.shoulder_joint[side];
-      const Vector3d& b = marks.elbow_joint[side];
-      return Vector3d(a + (center - a).dot(up) / (b - a).dot(up) * (b - a));
-    };
-    if (!loop || LoopContains(*loop, center, up, arm_at(0)) ||
-        LoopContains(*loop, center, up, arm_at(1))) {
+    if (!loop || LoopContains(*loop, center, up, arm_at(center))) {
       out["back_width"] = Withheld(def, "the section at the armpits merges with the arms");
     } else {
       // The posterior armpit folds lie a quarter of the section's half depth behind its

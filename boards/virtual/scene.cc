@@ -278,6 +278,11 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   nlohmann::json subject_json = {{"type", "mannequin"}};
   if (json.contains("subject")) subject_json = json["subject"];
   if (subject_json.is_object() && subject_json.contains("albedo")) {
+    if (subject_json.value("type", "") == "body") {
+      JsonReader(subject_json, file_name, "subject")
+          .Fail("albedo",
+                "a body's albedo is per region: skin_albedo, hair_albedo, underwear_albedo");
+    }
     scene.subject_albedo =
         JsonReader(subject_json, file_name, "subject").Number("albedo", 0.6, 0.0, 1.0);
     subject_json.erase("albedo");

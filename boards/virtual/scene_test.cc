@@ -19,6 +19,12 @@ std::string ErrorOf(const std::string& text) {
   return "";
 }
 
+TEST(SceneTest, ABodysAlbedoIsPerRegion) {
+  const std::string error = ErrorOf(R"({"subject": {"type": "body", "albedo": 0.5}})");
+  EXPECT_NE(error.find("subject.albedo"), std::string::npos) << error;
+  EXPECT_NE(error.find("skin_albedo"), std::string::npos) << error;
+}
+
 TEST(SceneTest, DefaultsModelThePaper) {
   const Scene scene = Scene::Parse(nlohmann::json::object(), "scene.json", ".");
   ASSERT_EQ(scene.cameras.size(), 2u);
