@@ -497,9 +497,10 @@ TEST(SubjectParseTest, ErrorsNameTheKey) {
   EXPECT_EQ(ParseError(R"({"type": "cuboid", "sise_mm": [1, 2, 3]})"),
             "scene.json: subject.sise_mm: unknown key (expected one of: type, size_mm, "
             "center_mm, yaw_deg)");
-  EXPECT_EQ(ParseError(R"({"type": "sphere"})"),
-            "scene.json: subject.type: \"sphere\" is not one of: cuboid, cylinder, mannequin, "
-            "mesh, none");
+  EXPECT_EQ(
+      ParseError(R"({"type": "sphere"})"),
+      "scene.json: subject.type: \"sphere\" is not one of: cuboid, cylinder, mannequin, body, "
+      "mesh, none");
   EXPECT_EQ(ParseError(R"({})"), "scene.json: subject.type: missing (expected a string)");
   EXPECT_EQ(ParseError(R"({"type": "cuboid", "size_mm": [100, -1, 300]})"),
             "scene.json: subject.size_mm: every size must be positive");
