@@ -46,30 +46,34 @@ struct EdgeKeyHash {
   }
 };
 
-// The field's zero on the segment a (value fa < 0 or >= 0) to b (opposite side), by
-// regula falsi with the Illinois fix; stays strictly inside the segment.
+// The field's zero on the segment a (value fa) to b (the other side), by regula falsi with
+// the Illinois fix, kept 2 % of the segment clear of its ends: a vertex closer to a grid
+// point than that makes slivers that floating-point intersection tests (Open3D's) take for
+// crossings. The surface is then at most 2 % of a cell (0.08 mm at 4 mm) off there.
 Eigen::Vector3d ZeroOnEdge(const std::function<double(const Eigen::Vector3d&)>& field,
-                           Eigen::Vector3d a, double fa, Eigen::Vector3d b, double fb) {
+                           const Eigen::Vector3d& a, double fa, const Eigen::Vector3d& b,
+                           double fb) {
+  double lo = 0, hi = 1, f_lo = fa, f_hi = fb;
+  double t = fa / (fa - fb);
   int side = 0;
-  Eigen::Vector3d x = a;
-  for (int i = 0; i < 12; ++i) {
-    const double t = std::clamp(fa / (fa - fb), 1e-4, 1.0 - 1e-4);
-    x = a + t * (b - a);
-    const double fx = field(x);
-    if (std::abs(fx) < 1e-6) break;
-    if ((fx < 0) == (fa < 0)) {
-      a = x;
-      fa = fx;
-      if (side == -1) fb *= 0.5;
+  for (int i = 0; i < 30; ++i) {
+    t = lo + (hi - lo) * f_lo / (f_lo - f_hi);
+    const double ft = field(a + t * (b - a));
+    if (std::abs(ft) < 1e-7) break;
+    if ((ft < 0) == (f_lo < 0)) {
+      lo = t;
+      f_lo = ft;
+      if (side == -1) f_hi *= 0.5;
       side = -1;
     } else {
-      b = x;
-      fb = fx;
-      if (side == 1) fa *= 0.5;
+      hi = t;
+      f_hi = ft;
+      if (side == 1) f_lo *= 0.5;
       side = 1;
     }
   }
-  return x;
+  t = std::clamp(t, 0.02, 0.98);
+  return a + t * (b - a);
 }
 
 }  // namespace
