@@ -109,11 +109,14 @@ TEST_F(MeshIoTest, ObjAndStlAsOpen3dWrote) {
   ASSERT_EQ(stl.size(), 84u + 4 * 50);
   EXPECT_EQ(stl.substr(0, 18), std::string("Created by Open3D\0", 18));
   EXPECT_EQ(stl[80], 4);
-  float facet[12];
-  std::memcpy(facet, stl.data() + 84, sizeof facet);
-  // The first triangle lies in z = 30, seen from below: normal -z; then its corners.
-  EXPECT_EQ(Eigen::Vector3f(facet[0], facet[1], facet[2]), Eigen::Vector3f(0, 0, -1));
-  EXPECT_EQ(Eigen::Vector3f(facet[6], facet[7], facet[8]), Eigen::Vector3f(10, 21, 30));
+  float facet[2][12];
+  std::memcpy(facet[0], stl.data() + 84, sizeof facet[0]);
+  std::memcpy(facet[1], stl.data() + 84 + 50, sizeof facet[1]);
+  // The first triangle lies in z = 30, seen from below: normal -z; then its corners. The
+  // second, in y = 20 with an edge 1.23 mm long: a unit normal, -y.
+  EXPECT_EQ(Eigen::Vector3f(facet[0][0], facet[0][1], facet[0][2]), Eigen::Vector3f(0, 0, -1));
+  EXPECT_EQ(Eigen::Vector3f(facet[0][6], facet[0][7], facet[0][8]), Eigen::Vector3f(10, 21, 30));
+  EXPECT_EQ(Eigen::Vector3f(facet[1][0], facet[1][1], facet[1][2]), Eigen::Vector3f(0, -1, 0));
 }
 
 TEST_F(MeshIoTest, ReadsAsciiAndBigEndianPlyWithPolygons) {
