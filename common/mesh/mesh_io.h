@@ -17,8 +17,9 @@ class MeshIoError : public std::runtime_error {
 
 // Reads a mesh by extension (any case): PLY (ASCII or binary; vertex x, y, z and, when
 // present, nx, ny, nz; faces as vertex_indices or vertex_index lists), OBJ (v and f lines;
-// f corners as v, v/vt, v/vt/vn or v//vn, negative indices from the end) or STL (binary or
-// ASCII; corners at the same position become one vertex). Polygons are cut into triangle
+// f corners as v, v/vt, v/vt/vn or v//vn, negative indices from the end; numbers read as
+// double) or STL (binary or ASCII; corners at the same position become one vertex, numbered
+// in order of first use). OBJ and STL normals are not read. Polygons are cut into triangle
 // fans. A missing file, an unknown extension, a malformed file, a mesh without triangles, a
 // triangle naming a missing vertex or a vertex that is not finite is a MeshIoError.
 TriangleMesh ReadTriangleMesh(const std::filesystem::path& file);
