@@ -1,7 +1,8 @@
 // Results back at the cabinet, end to end on loopback: mirrorscand on the virtual board,
 // a pushbutton scan (SIGUSR1), `mirrorscan device watch --process` fetching, processing
 // and uploading it, and the results read back from the device byte for byte; then
-// `process --upload` refusing a wrong token before any work (docs/cli-device.md).
+// `process --upload` refusing a wrong token before any work; a failing job reported and the
+// watch going on (docs/cli-device.md).
 #include <signal.h>
 
 #include <fstream>
@@ -132,6 +133,34 @@ TEST_F(DeviceWatchTest, APushbuttonScanComesBackProcessedAndTheUploadNeedsTheTok
   EXPECT_FALSE(fs::exists(dir_ / "again" / "mesh.ply"));
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
   EXPECT_EQ(fs::last_write_time(dir_ / "data" / (id + ".results") / "mesh.ply"), mesh_time);
+}
+
+// A job that fails (here: a calibration that is no calibration) is reported in its scan's
+// line with its exit status and reason; the watch itself goes on and ends well.
+TEST_F(DeviceWatchTest, AFailingJobIsReportedAndTheWatchGoesOn) {
+  std::ofstream(dir_ / "broken.json") << "{\"not\": \"a calibration\"}";
+  test_support::ChildOptions options;
+  options.env = {{"MIRRORSCAN_TOKEN", token_}};
+  ChildProcess watch(
+      kBin + "/mirrorscan",
+      {"device", "watch", "--host", host_, "--out", (dir_ / "watch").string(), "--process",
+       "--calibration", (dir_ / "broken.json").string(), "--count", "1", "--json"},
+      dir_ / "watch.log", options);
+  ASSERT_TRUE(watch.WaitLog("watch: following", std::chrono::seconds(30))) << watch.Log();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the event stream is open
+  daemon_->Signal(SIGUSR1);                                     // the pushbutton
+  ASSERT_EQ(watch.Wait(std::chrono::minutes(8)), 0) << watch.Log() << daemon_->Log();
+  json report;
+  std::istringstream lines(watch.Log());
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("{\"", 0) == 0) report = json::parse(line);
+  }
+  ASSERT_TRUE(report.is_object()) << watch.Log();
+  EXPECT_EQ(report.at("process_exit"), 2) << watch.Log();
+  EXPECT_NE(report.at("process_error").get<std::string>().find("broken.json"), std::string::npos)
+      << report.dump();
+  EXPECT_NE(watch.Log().find(", process exit 2: "), std::string::npos) << watch.Log();
+  EXPECT_TRUE(fs::exists(dir_ / "watch" / (report.at("id").get<std::string>() + ".mscan")));
 }
 
 }  // namespace

@@ -1,24 +1,10 @@
 #pragma once
-
-#include <filesystem>
-#include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
+// The virtual cabinet's meshes (subjects, the target, the chessboard) are the project's one
+// TriangleMesh (common/mesh), read and written by common/mesh/mesh_io.h.
+#include "common/mesh/triangle_mesh.h"
 
 namespace mirrorscan::virtual_cabinet {
 
-// An indexed triangle mesh in millimetres, world frame unless stated otherwise.
-// Triangles are counter-clockwise seen from outside (normals point out).
-struct TriangleMesh {
-  std::vector<Eigen::Vector3d> vertices;
-  std::vector<Eigen::Vector3i> triangles;
-
-  void Append(const TriangleMesh& other);
-  void Transform(const Eigen::Affine3d& transform);  // handles mirroring transforms
-  Eigen::Vector3d TriangleNormal(int triangle) const;  // unit, outward
-  Eigen::AlignedBox3d Bounds() const;
-  bool empty() const { return triangles.empty(); }
-};
+using mirrorscan::TriangleMesh;
 
 }  // namespace mirrorscan::virtual_cabinet

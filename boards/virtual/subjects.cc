@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "boards/virtual/mesh_io.h"
+#include "common/mesh/mesh_io.h"
 
 namespace mirrorscan::virtual_cabinet {
 namespace {
@@ -664,7 +664,7 @@ Subject LoadMeshSubject(const MeshParams& p) {
   Require(p.scale > 0.0, "mesh: scale must be positive");
   Subject subject{"mesh", {}, {}, {}};
   try {
-    subject.mesh = ReadMeshFile(p.path);
+    subject.mesh = ReadTriangleMesh(p.path);
   } catch (const MeshIoError& e) {
     throw ConfigError(e.what());
   }

@@ -630,8 +630,7 @@ TEST_F(SubjectMeshFileTest, BadFilesNameTheFileAndTheKey) {
             "scene.json: subject.path: " + (dir_ / "missing.stl").string() + ": no such file");
   Write("empty.ply", "");
   EXPECT_EQ(ParseError(R"({"type": "mesh", "path": "empty.ply"})", dir_),
-            "scene.json: subject.path: " + (dir_ / "empty.ply").string() +
-                ": cannot read mesh (unreadable or malformed file)");
+            "scene.json: subject.path: " + (dir_ / "empty.ply").string() + ": not a PLY file");
   Write("points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n");
   EXPECT_EQ(
       ParseError(R"({"type": "mesh", "path": "points.obj"})", dir_),

@@ -1,7 +1,5 @@
 #include "host/cli/device_command.h"
 
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -22,6 +20,7 @@
 #include "common/protocol/protocol.h"
 #include "host/cli/device_discovery.h"
 #include "host/cli/exit_status.h"
+#include "host/cli/process_command.h"
 #include "host/client/device_client.h"
 
 namespace mirrorscan::cli {
@@ -283,37 +282,24 @@ void Capture(const DeviceOptions& o) {
   std::printf("%s\n", out.c_str());
 }
 
-// `mirrorscan process ARCHIVE --calibration C --out DIR --upload HOST` as a child: the
-// stateless batch job, in its own process (a crash in meshing never ends the watch). The
-// token reaches it in the environment, never on a command line others can read.
-int RunProcess(const DeviceOptions& o, const fs::path& archive, const fs::path& out) {
-  std::vector<std::string> args = {"mirrorscan",    "process",          archive.string(),
-                                   "--calibration", o.calibration_file, "--out",
-                                   out.string(),    "--upload",         o.host};
-  if (!o.board.empty()) {
-    args.push_back("--board");
-    args.push_back(o.board);
+// The scan processed here, in this process (pipeline::Process, as `mirrorscan process
+// ARCHIVE --calibration C --out DIR --upload HOST` does): its exit status, 0 when the results
+// are on the device. A job that fails is reported and the watch goes on.
+int ProcessScan(const DeviceOptions& o, const fs::path& archive, const fs::path& out,
+                json* report) {
+  pipeline::ProcessOptions options;
+  options.upload = o.host;
+  options.token = o.token;
+  try {
+    RunProcess(archive, o.calibration_file, o.board, out, options);
+    return 0;
+  } catch (const CommandExit& e) {
+    (*report)["process_error"] = e.what();
+    return e.status();
+  } catch (const std::exception& e) {
+    (*report)["process_error"] = e.what();
+    return kExitFailure;
   }
-  std::vector<char*> argv;
-  for (std::string& a : args) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  std::vector<std::string> env_strings;
-  const std::string token_var(protocol::kTokenEnvironmentVariable);
-  for (char** e = environ; *e != nullptr; ++e) {
-    if (std::string(*e).rfind(token_var + "=", 0) != 0) env_strings.push_back(*e);
-  }
-  env_strings.push_back(token_var + "=" + o.token);
-  std::vector<char*> envp;
-  for (std::string& e : env_strings) envp.push_back(e.data());
-  envp.push_back(nullptr);
-  pid_t pid = 0;
-  if (posix_spawn(&pid, "/proc/self/exe", nullptr, nullptr, argv.data(), envp.data()) != 0) {
-    throw std::runtime_error("watch: cannot start mirrorscan process");
-  }
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
 // One finished scan: fetched (retried while the device still finishes it), then processed
@@ -336,8 +322,7 @@ json HandleFinishedScan(const DeviceOptions& o, client::DeviceClient& device,
   report.update(FetchJson(id, fetched));
   if (o.process) {
     const fs::path out = fs::path(o.out) / id;
-    const int status = RunProcess(o, archive, out);
-    report["process_exit"] = status;
+    report["process_exit"] = ProcessScan(o, archive, out, &report);
     report["results"] = out.string();
   }
   return report;
@@ -382,7 +367,9 @@ void Watch(const DeviceOptions& o) {
                    !o.process ? ""
                    : report["process_exit"] == 0
                        ? ", processed and uploaded"
-                       : (", process exit " + report["process_exit"].dump()).c_str());
+                       : (", process exit " + report["process_exit"].dump() + ": " +
+                          report.value("process_error", std::string()))
+                             .c_str());
     }
     if (o.json) {
       std::cout << report.dump() << std::endl;
@@ -524,7 +511,8 @@ void AddDeviceCommands(CLI::App& app) {
       "--process reconstruct, mesh, measure and upload the results to the device");
   watch->add_option("--out", options->out, "folder for the archives (and results)")->required();
   watch->add_flag("--process", options->process,
-                  "run `mirrorscan process ... --upload` on each fetched scan into OUT/ID/");
+                  "process each fetched scan into OUT/ID/ and upload its results (as `mirrorscan "
+                  "process ... --upload`, in this process)");
   watch->add_option("--calibration", options->calibration_file, "calibration.json for --process")
       ->check(CLI::ExistingFile);
   watch->add_option("--board", options->board, "board.json for --process (bounding cylinder)")

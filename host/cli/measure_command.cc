@@ -1,7 +1,5 @@
 #include "host/cli/measure_command.h"
 
-#include <algorithm>
-#include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -10,11 +8,10 @@
 #include <string>
 #include <vector>
 
-#include <open3d/geometry/TriangleMesh.h>
-#include <open3d/io/TriangleMeshIO.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/mesh/mesh_io.h"
 #include "host/measurement/measure.h"
 #include "host/measurement/preview.h"
 
@@ -32,33 +29,6 @@ struct MeasureOptions {
   bool json = false;
 };
 
-measurement::SurfaceMesh ReadMesh(const std::string& file) {
-  std::string ext = fs::path(file).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
-    throw std::runtime_error(file + ": unsupported mesh format \"" + ext +
-                             "\" (expected .ply, .obj or .stl)");
-  }
-  std::error_code error;
-  if (!fs::is_regular_file(file, error)) throw std::runtime_error(file + ": no such file");
-  open3d::geometry::TriangleMesh loaded;
-  if (!open3d::io::ReadTriangleMesh(file, loaded)) {
-    throw std::runtime_error(file + ": cannot read mesh (unreadable or malformed file)");
-  }
-  if (loaded.triangles_.empty()) throw std::runtime_error(file + ": mesh has no triangles");
-  const int vertex_count = static_cast<int>(loaded.vertices_.size());
-  for (const Eigen::Vector3i& t : loaded.triangles_) {
-    if (t.minCoeff() < 0 || t.maxCoeff() >= vertex_count) {
-      throw std::runtime_error(file + ": a triangle refers to a missing vertex");
-    }
-  }
-  for (const Eigen::Vector3d& v : loaded.vertices_) {
-    if (!v.allFinite()) throw std::runtime_error(file + ": a vertex is not finite");
-  }
-  return {std::move(loaded.vertices_), std::move(loaded.triangles_)};
-}
-
 void WriteText(const std::string& file, const std::string& text) {
   // Beside the target, then renamed: a reader never sees half a file.
   const std::string partial = file + ".partial";
@@ -73,7 +43,7 @@ void WriteText(const std::string& file, const std::string& text) {
 }
 
 void Run(const MeasureOptions& o) {
-  const measurement::SurfaceMesh mesh = ReadMesh(o.mesh);
+  const TriangleMesh mesh = ReadTriangleMesh(o.mesh);
   if (!o.json)
     std::fprintf(stderr, "measuring %s (%zu triangles)\n", o.mesh.c_str(), mesh.triangles.size());
   measurement::MeasureOptions options;

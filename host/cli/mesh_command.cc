@@ -4,8 +4,12 @@
 #include <memory>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
+#include "common/mesh/cloud_io.h"
 #include "host/cli/exit_status.h"
 #include "host/cli/progress.h"
+#include "host/pipeline/pipeline.h"
 
 namespace mirrorscan::cli {
 namespace {
@@ -20,8 +24,6 @@ struct MeshCommandOptions {
   bool json = false;
 };
 
-nlohmann::json Vector(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-
 void Run(const MeshCommandOptions& o) {
   const std::vector<std::string> formats = ParseFormats(o.formats);
   try {
@@ -35,10 +37,10 @@ void Run(const MeshCommandOptions& o) {
   }
   Progress progress("mesh");
   progress.Stage("reading " + o.points);
-  meshing::OrientedCloud cloud;
+  PointCloud cloud;
   try {
-    cloud = meshing::ReadOrientedCloud(o.points);
-  } catch (const meshing::MeshingError& e) {
+    cloud = ReadPointCloud(o.points, /*require_normals=*/true);
+  } catch (const MeshIoError& e) {
     throw CommandExit(kExitUsage, e.what());
   }
   progress.Stage("Poisson surface");
@@ -49,9 +51,9 @@ void Run(const MeshCommandOptions& o) {
     throw CommandExit(kExitFailure, o.points + ": no usable mesh: " + e.what());
   }
   progress.Stage("writing");
-  const auto written = WriteMeshFormats(result.mesh, o.out, formats);
+  const auto written = pipeline::WriteMeshFormats(result.mesh, o.out, formats);
   progress.Done();
-  nlohmann::json summary = MeshingJson(result);
+  nlohmann::json summary = meshing::SummaryJson(result);
   summary["files"] = nlohmann::json::array();
   for (const auto& file : written) summary["files"].push_back(file.string());
   if (o.json) {
@@ -91,64 +93,14 @@ void AddMeshingFlags(CLI::App* command, meshing::MeshingOptions* options) {
 }
 
 std::vector<std::string> ParseFormats(const std::string& formats) {
-  std::vector<std::string> out;
+  std::vector<std::string> list;
   std::stringstream in(formats);
-  std::string format;
-  while (std::getline(in, format, ',')) {
-    if (format != "ply" && format != "obj" && format != "stl") {
-      throw CommandExit(kExitUsage, "--formats: \"" + format + "\" is not one of ply, obj, stl");
-    }
-    if (std::find(out.begin(), out.end(), format) == out.end()) out.push_back(format);
+  for (std::string format; std::getline(in, format, ',');) list.push_back(format);
+  try {
+    return pipeline::CheckMeshFormats(list);
+  } catch (const pipeline::InputError& e) {
+    throw CommandExit(kExitUsage, std::string("--") + e.what());
   }
-  if (std::find(out.begin(), out.end(), "ply") == out.end()) out.insert(out.begin(), "ply");
-  return out;
-}
-
-std::vector<fs::path> WriteMeshFormats(const meshing::Mesh& mesh, const fs::path& ply_path,
-                                       const std::vector<std::string>& formats) {
-  std::vector<fs::path> written;
-  for (const std::string& format : formats) {
-    fs::path file = ply_path;
-    file.replace_extension("." + format);
-    meshing::WriteMesh(mesh, file);
-    written.push_back(file);
-  }
-  return written;
-}
-
-nlohmann::json MeshingJson(const meshing::MeshingResult& r) {
-  nlohmann::json holes = nlohmann::json::array();
-  for (const auto& hole : r.holes.holes) {
-    holes.push_back({{"perimeter_mm", hole.perimeter_mm},
-                     {"edges", hole.edges},
-                     {"centroid_mm", Vector(hole.centroid)}});
-  }
-  return {
-      {"input_points", r.input_points},
-      {"downsampled_points", r.downsampled_points},
-      {"poisson_depth", r.depth},
-      {"poisson_cell_mm", r.cell_mm},
-      {"poisson_vertices", r.poisson_vertices},
-      {"trimmed",
-       {{"far_vertices", r.trimmed_far},
-        {"low_density_vertices", r.trimmed_low_density},
-        {"small_components", r.dropped_components}}},
-      {"vertices", r.stats.vertices},
-      {"triangles", r.stats.triangles},
-      {"components", r.stats.components},
-      {"area_mm2", r.stats.area_mm2},
-      {"volume_mm3", r.stats.watertight ? nlohmann::json(r.stats.volume_mm3) : nlohmann::json()},
-      {"watertight", r.stats.watertight},
-      {"edge_manifold", r.stats.edge_manifold},
-      {"mean_edge_mm", r.stats.mean_edge_mm},
-      {"bounds_mm", {{"min", Vector(r.stats.bounds.min())}, {"max", Vector(r.stats.bounds.max())}}},
-      {"holes",
-       {{"count", r.holes.count()},
-        {"largest_perimeter_mm", r.holes.largest_perimeter_mm()},
-        {"open_boundary_edges", r.holes.open_boundary_edges},
-        {"loops", holes}}},
-      {"timings_s", {{"downsample", r.downsample_s}, {"poisson", r.poisson_s}, {"trim", r.trim_s}}},
-      {"warnings", r.warnings}};
 }
 
 void AddMeshCommand(CLI::App& app) {

@@ -1,11 +1,9 @@
 #pragma once
 
-#include <filesystem>
 #include <string>
 #include <vector>
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
 
 #include "host/meshing/meshing.h"
 
@@ -20,11 +18,5 @@ void AddMeshingFlags(CLI::App* command, meshing::MeshingOptions* options);
 // --formats: "ply", "obj", "stl" in any comma-separated combination; throws CommandExit
 // (usage) on anything else.
 std::vector<std::string> ParseFormats(const std::string& formats);
-// Writes `stem`.<format> for each format; returns the files written.
-std::vector<std::filesystem::path> WriteMeshFormats(const meshing::Mesh& mesh,
-                                                    const std::filesystem::path& ply_path,
-                                                    const std::vector<std::string>& formats);
-// Mesh statistics, holes, trimming and timings for summaries.
-nlohmann::json MeshingJson(const meshing::MeshingResult& result);
 
 }  // namespace mirrorscan::cli

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "common/config/calibration.h"
+#include "common/mesh/cloud_io.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "host/reconstruction/reconstruct.h"
@@ -85,7 +86,7 @@ void Run(const ReconstructCliOptions& o) {
     if (!last_stage.empty() && last_stage != "done") std::fprintf(stderr, "\n");
     throw;
   }
-  reconstruction::WritePly(o.out, result.cloud);
+  WritePointCloud(o.out, result.cloud);
   for (const std::string& w : result.summary.warnings)
     std::fprintf(stderr, "reconstruct: warning: %s\n", w.c_str());
   if (o.json) {

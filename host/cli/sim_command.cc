@@ -15,12 +15,12 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "boards/virtual/mesh_io.h"
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
 #include "boards/virtual/surface_samples.h"
 #include "common/config/calibration.h"
 #include "common/config/json_reader.h"
+#include "common/mesh/mesh_io.h"
 #include "common/peaks/peaks.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
@@ -377,8 +377,8 @@ void WriteSubject(const SimOptions& o) {
   if (scene.subject.mesh.empty())
     throw std::runtime_error(o.scene_path + ": the scene has no subject");
   try {
-    virtual_cabinet::WriteMeshFile(scene.subject.mesh, o.out);
-  } catch (const virtual_cabinet::MeshIoError& e) {
+    WriteTriangleMesh(scene.subject.mesh, o.out);
+  } catch (const MeshIoError& e) {
     throw std::runtime_error(e.what());
   }
   if (!o.truth_out.empty()) {
@@ -405,7 +405,7 @@ void Surface(const SimOptions& o) {
     throw std::runtime_error(o.scene_path + ": the scene has no subject");
   const Renderer renderer(scene);
   fs::create_directories(o.out);
-  virtual_cabinet::WriteMeshFile(scene.subject.mesh, fs::path(o.out) / "subject.ply");
+  WriteTriangleMesh(scene.subject.mesh, fs::path(o.out) / "subject.ply");
   const auto samples = virtual_cabinet::SampleSubjectSurface(renderer, o.spacing_mm, scene.seed);
   std::ofstream csv(fs::path(o.out) / "surface-samples.csv");
   csv << "x_mm,y_mm,z_mm,nx,ny,nz,visible\n" << std::setprecision(10);

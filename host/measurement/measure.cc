@@ -939,7 +939,7 @@ const Measurement* BodyMeasurements::Find(const std::string& name) const {
   return nullptr;
 }
 
-BodyMeasurements MeasureBody(const SurfaceMesh& mesh, const MeasureOptions& options) {
+BodyMeasurements MeasureBody(const TriangleMesh& mesh, const MeasureOptions& options) {
   if (mesh.triangles.empty()) throw std::invalid_argument("the mesh has no triangles");
   const Slicer slicer(WeldVertices(mesh));
   BodyMeasurements out;

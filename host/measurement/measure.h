@@ -69,7 +69,7 @@ struct MeasureOptions {
 };
 
 // Throws std::invalid_argument on an empty mesh.
-BodyMeasurements MeasureBody(const SurfaceMesh& mesh, const MeasureOptions& options = {});
+BodyMeasurements MeasureBody(const TriangleMesh& mesh, const MeasureOptions& options = {});
 
 // {"stature_mm", "measurements": [{"name", "value_mm", "z_mm", "contour_mm",
 //  "confidence", "withheld"}], "slices": [{"z_mm", "part", "girth_mm", "contour_mm",

@@ -19,8 +19,6 @@ namespace {
 
 namespace vc = virtual_cabinet;
 
-SurfaceMesh ToSurface(const vc::TriangleMesh& mesh) { return {mesh.vertices, mesh.triangles}; }
-
 struct Pose {
   std::string name;
   vc::MannequinParams params;
@@ -76,7 +74,7 @@ void ExpectMeasured(const BodyMeasurements& body, const std::string& name, doubl
 TEST_P(MannequinMeasureTest, WithinIsoBoundsOfTheAnalyticTruth) {
   const vc::Subject subject = vc::MakeMannequin(GetParam().params);
   const nlohmann::json& truth = subject.metadata.at("truth");
-  const BodyMeasurements body = MeasureBody(ToSurface(subject.mesh));
+  const BodyMeasurements body = MeasureBody(subject.mesh);
   ASSERT_TRUE(body.human);
   // Heights and lengths within 2 mm, girths within 3 mm (the issue's bounds).
   ExpectMeasured(body, "stature", Truth(truth, "stature_mm"), 2.0);
@@ -116,7 +114,7 @@ TEST_P(MannequinMeasureTest, GirthAtAnyHeightMatchesTheTruthSection) {
     expected.emplace_back(z, *truth);
   }
   ASSERT_GT(expected.size(), 20u);
-  const BodyMeasurements body = MeasureBody(ToSurface(subject.mesh), options);
+  const BodyMeasurements body = MeasureBody(subject.mesh, options);
   for (const auto& [z, truth] : expected) {
     SCOPED_TRACE("z " + std::to_string(z) + " " + truth.part);
     bool seen = false;
@@ -140,7 +138,7 @@ TEST(MannequinMeasureTest, RaisedArmsGiveTorsoAndHeightsButWithholdTheArms) {
   const vc::MannequinParams p = Body(1750, 960, 800, 1000, 10.0, 120.0);
   const vc::Subject subject = vc::MakeMannequin(p);
   const nlohmann::json& truth = subject.metadata.at("truth");
-  const BodyMeasurements body = MeasureBody(ToSurface(subject.mesh));
+  const BodyMeasurements body = MeasureBody(subject.mesh);
   ASSERT_TRUE(body.human);
   ExpectMeasured(body, "stature", Truth(truth, "stature_mm"), 2.0);
   ExpectMeasured(body, "crotch_height", Truth(truth, "crotch_height_mm"), 2.0);
@@ -162,7 +160,7 @@ TEST(MannequinMeasureTest, RaisedArmsGiveTorsoAndHeightsButWithholdTheArms) {
 TEST(MannequinMeasureTest, ArmsAgainstTheTorsoWithholdItsGirths) {
   const vc::Subject subject = vc::MakeMannequin(Body(1750, 960, 800, 1000, 0.0, 5.0));
   const nlohmann::json& truth = subject.metadata.at("truth");
-  const BodyMeasurements body = MeasureBody(ToSurface(subject.mesh));
+  const BodyMeasurements body = MeasureBody(subject.mesh);
   ASSERT_TRUE(body.human);
   for (const char* name : {"chest_girth"}) {
     const Measurement* m = body.Find(name);
@@ -178,8 +176,8 @@ TEST(MannequinMeasureTest, ArmsAgainstTheTorsoWithholdItsGirths) {
 }
 
 // The mesh without the triangles whose centre lies within `radius` of `centre`.
-SurfaceMesh CutOut(const SurfaceMesh& mesh, const Eigen::Vector3d& centre, double radius) {
-  SurfaceMesh cut;
+TriangleMesh CutOut(const TriangleMesh& mesh, const Eigen::Vector3d& centre, double radius) {
+  TriangleMesh cut;
   cut.vertices = mesh.vertices;
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const Eigen::Vector3d c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
@@ -190,12 +188,12 @@ SurfaceMesh CutOut(const SurfaceMesh& mesh, const Eigen::Vector3d& centre, doubl
 
 // The mannequin with the front of its waist cut out (a ball of `waist_hole_mm` round)
 // and the top of its head (25 mm).
-SurfaceMesh MannequinWithHoles(const vc::Subject& subject, double waist_hole_mm) {
+TriangleMesh MannequinWithHoles(const vc::Subject& subject, double waist_hole_mm) {
   const nlohmann::json& truth = subject.metadata.at("truth");
   const double waist_z = truth.at("waist_z_mm").get<double>();
   const double b = subject.metadata.at("waist").at("semi_axes_mm")[1].get<double>();
-  const SurfaceMesh waist_cut =
-      CutOut(ToSurface(subject.mesh), Eigen::Vector3d(0.0, -b, waist_z), waist_hole_mm);
+  const TriangleMesh waist_cut =
+      CutOut(subject.mesh, Eigen::Vector3d(0.0, -b, waist_z), waist_hole_mm);
   return CutOut(waist_cut, Eigen::Vector3d(0.0, 0.0, 1750.0), 25.0);
 }
 
@@ -203,7 +201,7 @@ SurfaceMesh MannequinWithHoles(const vc::Subject& subject, double waist_hole_mm)
 TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
   const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
   const nlohmann::json& truth = subject.metadata.at("truth");
-  const SurfaceMesh mesh = MannequinWithHoles(subject, 30.0);  // ~60 mm across the waist
+  const TriangleMesh mesh = MannequinWithHoles(subject, 30.0);  // ~60 mm across the waist
   ASSERT_LT(mesh.triangles.size(), subject.mesh.triangles.size());
   const BodyMeasurements body = MeasureBody(mesh);
   const Measurement* waist = body.Find("waist_girth");
@@ -218,8 +216,8 @@ TEST(MannequinMeasureTest, HolesWithholdWhatTheyCross) {
 
 // The mesh without the triangles whose centre is above `z` and behind `y` (in front of
 // which the camera sees): the back of the head above the mirrors' reach.
-SurfaceMesh CutBehind(const SurfaceMesh& mesh, double y, double z) {
-  SurfaceMesh cut;
+TriangleMesh CutBehind(const TriangleMesh& mesh, double y, double z) {
+  TriangleMesh cut;
   cut.vertices = mesh.vertices;
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const Eigen::Vector3d c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
@@ -235,10 +233,10 @@ SurfaceMesh CutBehind(const SurfaceMesh& mesh, double y, double z) {
 TEST(MannequinMeasureTest, AHoleAtTheTopOfTheHeadIsClosedFromTheCapBelowIt) {
   const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
   const double stature = Truth(subject.metadata.at("truth"), "stature_mm");
-  const SurfaceMesh mesh = ToSurface(subject.mesh);
+  const TriangleMesh mesh = subject.mesh;
   for (const bool back_open : {false, true}) {
     for (const double hole_mm : {10.0, 40.0}) {
-      SurfaceMesh holed = CutOut(mesh, Eigen::Vector3d(0, 0, stature), hole_mm);
+      TriangleMesh holed = CutOut(mesh, Eigen::Vector3d(0, 0, stature), hole_mm);
       if (back_open) holed = CutBehind(holed, -7.0, stature - 30.0);
       const BodyMeasurements body = MeasureBody(holed);
       const Measurement* m = body.Find("stature");
@@ -254,7 +252,7 @@ TEST(MannequinMeasureTest, AHoleAtTheTopOfTheHeadIsClosedFromTheCapBelowIt) {
   // rim's vertices 1.5 mm low the fit keeps clear of them (planted, without the clearance
   // the stature is 1.0 mm low).
   {
-    SurfaceMesh ragged =
+    TriangleMesh ragged =
         CutBehind(CutOut(mesh, Eigen::Vector3d(0, 0, stature), 40.0), -7.0, stature - 30.0);
     std::map<std::pair<int, int>, int> edges;
     for (const Eigen::Vector3i& t : ragged.triangles) {
@@ -289,7 +287,7 @@ TEST(MannequinMeasureTest, AHoleAtTheTopOfTheHeadIsClosedFromTheCapBelowIt) {
 TEST(MannequinMeasureTest, AHoleThatCannotHideASmallerGirthDoesNotWithholdIt) {
   const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
   const BodyMeasurements body =
-      MeasureBody(CutOut(ToSurface(subject.mesh), Eigen::Vector3d(85, 0, 1475), 25.0));
+      MeasureBody(CutOut(subject.mesh, Eigen::Vector3d(85, 0, 1475), 25.0));
   ExpectMeasured(body, "neck_girth", Truth(subject.metadata.at("truth"), "neck_girth_mm"), 3.0);
   EXPECT_LT(body.Find("neck_girth")->confidence, 1.0);  // beside a hole all the same
 }
@@ -313,7 +311,7 @@ TEST(MannequinMeasureTest, ASmallHoleIsBridged) {
 TEST(MannequinMeasureTest, HolesAtAnArmsEndsWithholdItsLandmarks) {
   const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
   const nlohmann::json& truth = subject.metadata.at("truth");
-  const SurfaceMesh whole = ToSurface(subject.mesh);
+  const TriangleMesh whole = subject.mesh;
   const BodyMeasurements exact = MeasureBody(whole);
   const Eigen::Vector3d* wrist = nullptr;
   const Eigen::Vector3d* shoulder = nullptr;
@@ -350,7 +348,7 @@ TEST(MannequinMeasureTest, ALegOpenOnTheSideFacingTheOtherIsStillALeg) {
   params.yaw_deg = -45.0;
   const vc::Subject subject = vc::MakeMannequin(params);
   const nlohmann::json& truth = subject.metadata.at("truth");
-  SurfaceMesh mesh = ToSurface(subject.mesh);
+  TriangleMesh mesh = subject.mesh;
   // The legs' centres and radius from the exact section at 450 mm.
   const Section legs = Slicer(mesh).AtHeight(450.0);
   ASSERT_GE(legs.parts.size(), 2u);
@@ -382,7 +380,7 @@ TEST(MannequinMeasureTest, ALegOpenOnTheSideFacingTheOtherIsStillALeg) {
 void ExpectAllWithheld(const vc::Subject& subject) {
   MeasureOptions options;
   options.girth_at_mm = {500.0};
-  const BodyMeasurements body = MeasureBody(ToSurface(subject.mesh), options);
+  const BodyMeasurements body = MeasureBody(subject.mesh, options);
   EXPECT_FALSE(body.human);
   EXPECT_FALSE(body.stature_mm);
   ASSERT_GE(body.measurements.size(), 10u);
@@ -402,7 +400,7 @@ TEST(NonHumanMeasureTest, CylinderIsNotMeasuredButItsGirthIsTaken) {
   ExpectAllWithheld(vc::MakeCylinder(p));
   MeasureOptions options;
   options.girth_at_mm = {900.0};
-  const BodyMeasurements body = MeasureBody(ToSurface(vc::MakeCylinder(p).mesh), options);
+  const BodyMeasurements body = MeasureBody(vc::MakeCylinder(p).mesh, options);
   ASSERT_EQ(body.slices.size(), 1u);
   ASSERT_TRUE(body.slices[0].girth_mm);
   EXPECT_NEAR(*body.slices[0].girth_mm, 2.0 * std::numbers::pi * p.radius_mm, 0.1);
@@ -412,7 +410,7 @@ TEST(MeasureJsonTest, ShapeOfTheIssue) {
   const vc::Subject subject = vc::MakeMannequin(vc::MannequinParams{});
   MeasureOptions options;
   options.girth_at_mm = {1000.0};
-  const nlohmann::json json = ToJson(MeasureBody(ToSurface(subject.mesh), options));
+  const nlohmann::json json = ToJson(MeasureBody(subject.mesh, options));
   EXPECT_TRUE(json.at("stature_mm").is_number());
   for (const nlohmann::json& m : json.at("measurements")) {
     for (const char* key : {"name", "value_mm", "z_mm", "confidence", "withheld"}) {

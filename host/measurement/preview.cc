@@ -9,7 +9,7 @@
 
 namespace mirrorscan::measurement {
 
-cv::Mat RenderPreview(const SurfaceMesh& mesh, const BodyMeasurements& body, int height_px) {
+cv::Mat RenderPreview(const TriangleMesh& mesh, const BodyMeasurements& body, int height_px) {
   const Eigen::Vector3d lateral(body.lateral.x(), body.lateral.y(), 0.0);
   const Eigen::Vector3d front(body.lateral.y(), -body.lateral.x(), 0.0);
   double u_lo = 1e18, u_hi = -1e18, z_lo = 1e18, z_hi = -1e18;

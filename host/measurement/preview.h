@@ -10,6 +10,6 @@ namespace mirrorscan::measurement {
 // A front view of the mesh (orthographic, from the subject's front, its left on the
 // image's right) with each measured contour and landmark drawn on the body and named.
 // BGR, `height_px` high.
-cv::Mat RenderPreview(const SurfaceMesh& mesh, const BodyMeasurements& body, int height_px = 1000);
+cv::Mat RenderPreview(const TriangleMesh& mesh, const BodyMeasurements& body, int height_px = 1000);
 
 }  // namespace mirrorscan::measurement

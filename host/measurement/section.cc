@@ -353,8 +353,8 @@ double SectionPart::DistanceTo(const SectionPart& other) const {
   return best;
 }
 
-SurfaceMesh WeldVertices(const SurfaceMesh& mesh) {
-  SurfaceMesh welded;
+TriangleMesh WeldVertices(const TriangleMesh& mesh) {
+  TriangleMesh welded;
   std::unordered_map<VertexKey, int, VertexKeyHash> index;
   std::vector<int> remap(mesh.vertices.size());
   for (size_t i = 0; i < mesh.vertices.size(); ++i) {
@@ -371,7 +371,7 @@ SurfaceMesh WeldVertices(const SurfaceMesh& mesh) {
   return welded;
 }
 
-Slicer::Slicer(SurfaceMesh mesh) : mesh_(std::move(mesh)) {
+Slicer::Slicer(TriangleMesh mesh) : mesh_(std::move(mesh)) {
   if (mesh_.vertices.empty()) return;
   double z_max = std::numeric_limits<double>::lowest();
   z_min_ = std::numeric_limits<double>::max();
@@ -499,7 +499,7 @@ Section Slicer::Cut(const std::vector<int>& triangles, const Eigen::Vector3d& or
   return section;
 }
 
-std::vector<LineCrossing> CrossLine(const SurfaceMesh& mesh, const Eigen::Vector3d& origin,
+std::vector<LineCrossing> CrossLine(const TriangleMesh& mesh, const Eigen::Vector3d& origin,
                                     const Eigen::Vector3d& direction) {
   std::vector<LineCrossing> crossings;
   for (const Eigen::Vector3i& t : mesh.triangles) {

@@ -4,19 +4,13 @@
 
 #include <Eigen/Core>
 
+#include "common/mesh/triangle_mesh.h"
+
 namespace mirrorscan::measurement {
 
-// An indexed triangle mesh in millimetres, world frame (z up, the floor at z = 0).
-// Triangles are counter-clockwise seen from outside; parts may overlap (the virtual
-// cabinet's mannequin is overlapping closed solids, a scan is one surface).
-struct SurfaceMesh {
-  std::vector<Eigen::Vector3d> vertices;
-  std::vector<Eigen::Vector3i> triangles;
-};
-
-// The mesh with vertices at the same position merged (STL stores every triangle's
-// corners apart), so that sections can follow edges from triangle to triangle.
-SurfaceMesh WeldVertices(const SurfaceMesh& mesh);
+// The mesh with vertices at the same position merged (a triangle soup stores every
+// triangle's corners apart), so that sections can follow edges from triangle to triangle.
+TriangleMesh WeldVertices(const TriangleMesh& mesh);
 
 // One chain of a plane section, in the plane's coordinates. A closed loop went all the
 // way round; an open chain ended at a border of the mesh: a hole crosses the section.
@@ -62,9 +56,9 @@ struct Section {
 // Sections of one mesh; horizontal ones use a height index of the triangles.
 class Slicer {
  public:
-  explicit Slicer(SurfaceMesh mesh);
+  explicit Slicer(TriangleMesh mesh);
 
-  const SurfaceMesh& mesh() const { return mesh_; }
+  const TriangleMesh& mesh() const { return mesh_; }
   // The section by the horizontal plane at z, in world x and y. A vertex exactly on the
   // plane counts as above it, so the section is that of the plane an instant lower.
   // Without `join_holes` open chains are neither joined nor bridged (SectionPart): an open
@@ -79,7 +73,7 @@ class Slicer {
               const Eigen::Vector3d& normal, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2,
               bool join_holes) const;
 
-  SurfaceMesh mesh_;
+  TriangleMesh mesh_;
   double z_min_ = 0.0, bucket_mm_ = 10.0;
   std::vector<std::vector<int>> buckets_;  // triangles spanning each z bucket
 };
@@ -90,7 +84,7 @@ struct LineCrossing {
   double t;
   int sign;
 };
-std::vector<LineCrossing> CrossLine(const SurfaceMesh& mesh, const Eigen::Vector3d& origin,
+std::vector<LineCrossing> CrossLine(const TriangleMesh& mesh, const Eigen::Vector3d& origin,
                                     const Eigen::Vector3d& direction);
 
 }  // namespace mirrorscan::measurement

@@ -10,10 +10,10 @@ namespace {
 
 // An L-shaped prism from z = 0 to 50 (outward normals): its outline is 400 mm, and a
 // tape round it spans the hollow: 100 + 40 + 60 sqrt 2 + 40 + 100 mm.
-SurfaceMesh LPrism() {
+TriangleMesh LPrism() {
   const std::vector<Eigen::Vector2d> outline = {{0, 0},   {100, 0},  {100, 40},
                                                 {40, 40}, {40, 100}, {0, 100}};
-  SurfaceMesh mesh;
+  TriangleMesh mesh;
   const int n = static_cast<int>(outline.size());
   for (double z : {0.0, 50.0}) {
     for (const Eigen::Vector2d& p : outline) mesh.vertices.emplace_back(p.x(), p.y(), z);
@@ -50,7 +50,7 @@ TEST(SectionTest, AVertexOnThePlaneCountsAsAbove) {
 }
 
 TEST(SectionTest, AMissingFaceLeavesAnOpenChainAndMarksAHole) {
-  SurfaceMesh mesh = LPrism();
+  TriangleMesh mesh = LPrism();
   mesh.triangles.erase(mesh.triangles.begin(), mesh.triangles.begin() + 2);  // side 0-1
   const Slicer slicer(mesh);
   const Section s = slicer.AtHeight(25.0);
@@ -63,10 +63,10 @@ TEST(SectionTest, AMissingFaceLeavesAnOpenChainAndMarksAHole) {
 // A closed cylinder of radius `radius` round the vertical line x = `centre_x`, y = 0 from
 // z = 0 to 100, 256 sides, with the side faces whose middle lies within `gap_deg` / 2 of
 // the direction `gap_towards_deg` (from +x) left out between z 20 and 80.
-SurfaceMesh CylinderWithAGap(double gap_deg, double radius = 100.0, double centre_x = 0.0,
-                             double gap_towards_deg = 0.0) {
+TriangleMesh CylinderWithAGap(double gap_deg, double radius = 100.0, double centre_x = 0.0,
+                              double gap_towards_deg = 0.0) {
   constexpr int kSides = 256;
-  SurfaceMesh mesh;
+  TriangleMesh mesh;
   const std::vector<double> heights = {0.0, 20.0, 80.0, 100.0};
   for (double z : heights) {
     for (int i = 0; i < kSides; ++i) {
@@ -112,8 +112,8 @@ TEST(SectionTest, OpenSidesFacingEachOtherAreNotJoined) {
   // Two limbs 30 mm apart, each open on the side facing the other (an arm beside the
   // torso, the thighs below the crotch): their ends point towards each other, but a join
   // would bend against both. Each is bridged round its own side instead.
-  SurfaceMesh mesh = CylinderWithAGap(90.0, 50.0, 0.0, 0.0);
-  const SurfaceMesh other = CylinderWithAGap(90.0, 50.0, 130.0, 180.0);
+  TriangleMesh mesh = CylinderWithAGap(90.0, 50.0, 0.0, 0.0);
+  const TriangleMesh other = CylinderWithAGap(90.0, 50.0, 130.0, 180.0);
   const int offset = static_cast<int>(mesh.vertices.size());
   mesh.vertices.insert(mesh.vertices.end(), other.vertices.begin(), other.vertices.end());
   for (const Eigen::Vector3i& t : other.triangles) {
@@ -139,7 +139,7 @@ TEST(SectionTest, TiltedPlaneThroughACube) {
 }
 
 TEST(SectionTest, LineCrossingsSayWhereTheLineEntersAndLeaves) {
-  const SurfaceMesh mesh = LPrism();
+  const TriangleMesh mesh = LPrism();
   const std::vector<LineCrossing> c =
       CrossLine(mesh, Eigen::Vector3d(50, 10, 25), Eigen::Vector3d(1, 0, 0));
   ASSERT_EQ(c.size(), 2u);
@@ -150,8 +150,8 @@ TEST(SectionTest, LineCrossingsSayWhereTheLineEntersAndLeaves) {
 }
 
 TEST(SectionTest, WeldingJoinsTheCornersOfSeparateTriangles) {
-  SurfaceMesh soup;
-  const SurfaceMesh mesh = LPrism();
+  TriangleMesh soup;
+  const TriangleMesh mesh = LPrism();
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const int base = static_cast<int>(soup.vertices.size());
     for (int k = 0; k < 3; ++k) soup.vertices.push_back(mesh.vertices[t[k]]);

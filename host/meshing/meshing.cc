@@ -6,7 +6,6 @@
 #include <map>
 #include <numeric>
 #include <sstream>
-#include <system_error>
 #include <unordered_map>
 
 #include <open3d/Open3DConfig.h>
@@ -14,8 +13,6 @@
 #include <open3d/geometry/KDTreeFlann.h>
 #include <open3d/geometry/PointCloud.h>
 #include <open3d/geometry/TriangleMesh.h>
-#include <open3d/io/PointCloudIO.h>
-#include <open3d/io/TriangleMeshIO.h>
 
 namespace mirrorscan::meshing {
 namespace {
@@ -23,13 +20,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-std::string Extension(const std::filesystem::path& file) {
-  std::string ext = file.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
 }
 
 std::string Percent(double share) {
@@ -65,15 +55,15 @@ void CheckCoverage(const open3d::geometry::PointCloud& cloud, double min_share) 
   }
 }
 
-Mesh FromOpen3d(const open3d::geometry::TriangleMesh& in) {
-  Mesh mesh;
+TriangleMesh FromOpen3d(const open3d::geometry::TriangleMesh& in) {
+  TriangleMesh mesh;
   mesh.vertices = in.vertices_;
   mesh.triangles = in.triangles_;
   mesh.vertex_normals = in.vertex_normals_;
   return mesh;
 }
 
-open3d::geometry::TriangleMesh ToOpen3d(const Mesh& in) {
+open3d::geometry::TriangleMesh ToOpen3d(const TriangleMesh& in) {
   open3d::geometry::TriangleMesh mesh;
   mesh.vertices_ = in.vertices;
   mesh.triangles_ = in.triangles;
@@ -128,12 +118,8 @@ void MeshingOptions::Validate() const {
           "min_direction_share must be in [0, 0.34)");
 }
 
-MeshingResult MeshCloud(const OrientedCloud& cloud, const MeshingOptions& options) {
+MeshingResult MeshCloud(const PointCloud& cloud, const MeshingOptions& options) {
   options.Validate();
-  if (cloud.normals.size() != cloud.points.size()) {
-    throw MeshingError("the cloud has " + std::to_string(cloud.points.size()) + " points but " +
-                       std::to_string(cloud.normals.size()) + " normals");
-  }
   MeshingResult result;
   result.input_points = static_cast<int>(cloud.points.size());
 
@@ -141,13 +127,15 @@ MeshingResult MeshCloud(const OrientedCloud& cloud, const MeshingOptions& option
   open3d::geometry::PointCloud input;
   input.points_.reserve(cloud.points.size());
   input.normals_.reserve(cloud.points.size());
-  for (size_t i = 0; i < cloud.points.size(); ++i) {
-    const double normal_length = cloud.normals[i].norm();
-    if (!cloud.points[i].allFinite() || !std::isfinite(normal_length) || normal_length < 0.5) {
+  for (const CloudPoint& p : cloud.points) {
+    const Eigen::Vector3d point = p.point_in_world.cast<double>();
+    const Eigen::Vector3d normal = p.normal.cast<double>();
+    const double normal_length = normal.norm();
+    if (!point.allFinite() || !std::isfinite(normal_length) || normal_length < 0.5) {
       continue;  // a point without a usable normal cannot orient the surface
     }
-    input.points_.push_back(cloud.points[i]);
-    input.normals_.push_back(cloud.normals[i] / normal_length);
+    input.points_.push_back(point);
+    input.normals_.push_back(normal / normal_length);
   }
   if (input.points_.size() < cloud.points.size()) {
     result.warnings.push_back(std::to_string(cloud.points.size() - input.points_.size()) +
@@ -231,7 +219,7 @@ MeshingResult MeshCloud(const OrientedCloud& cloud, const MeshingOptions& option
   return result;
 }
 
-HoleReport FindHoles(const Mesh& mesh) {
+HoleReport FindHoles(const TriangleMesh& mesh) {
   // Count each undirected edge; a boundary edge is used by one triangle only and is
   // walked in its triangle's direction, so a hole's loop is followed one way round.
   std::map<std::pair<int, int>, int> uses;
@@ -292,7 +280,7 @@ HoleReport FindHoles(const Mesh& mesh) {
   return report;
 }
 
-MeshStats ComputeStats(const Mesh& mesh) {
+MeshStats ComputeStats(const TriangleMesh& mesh) {
   MeshStats stats;
   stats.vertices = static_cast<int>(mesh.vertices.size());
   stats.triangles = static_cast<int>(mesh.triangles.size());
@@ -326,56 +314,40 @@ MeshStats ComputeStats(const Mesh& mesh) {
   return stats;
 }
 
-OrientedCloud ReadOrientedCloud(const std::filesystem::path& file) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(file, error)) {
-    throw MeshingError(file.string() + ": no such file");
+nlohmann::json SummaryJson(const MeshingResult& r) {
+  auto vector = [](const Eigen::Vector3d& v) { return nlohmann::json{v.x(), v.y(), v.z()}; };
+  nlohmann::json holes = nlohmann::json::array();
+  for (const auto& hole : r.holes.holes) {
+    holes.push_back({{"perimeter_mm", hole.perimeter_mm},
+                     {"edges", hole.edges},
+                     {"centroid_mm", vector(hole.centroid)}});
   }
-  if (Extension(file) != ".ply") throw MeshingError(file.string() + ": expected a .ply cloud");
-  open3d::geometry::PointCloud loaded;
-  open3d::io::ReadPointCloudOption read_options;
-  read_options.remove_nan_points = false;
-  read_options.remove_infinite_points = false;
-  if (!open3d::io::ReadPointCloud(file.string(), loaded, read_options)) {
-    throw MeshingError(file.string() + ": cannot read the point cloud (malformed PLY?)");
-  }
-  if (!loaded.points_.empty() && !loaded.HasNormals()) {
-    throw MeshingError(file.string() + ": the cloud has no normals (nx, ny, nz)");
-  }
-  OrientedCloud cloud;
-  cloud.points = std::move(loaded.points_);
-  cloud.normals = std::move(loaded.normals_);
-  return cloud;
-}
-
-void WriteMesh(const Mesh& mesh, const std::filesystem::path& file) {
-  const std::string ext = Extension(file);
-  if (ext != ".ply" && ext != ".obj" && ext != ".stl") {
-    throw MeshingError(file.string() + ": unsupported mesh format \"" + ext +
-                       "\" (expected .ply, .obj or .stl)");
-  }
-  open3d::geometry::TriangleMesh out = ToOpen3d(mesh);
-  // STL stores a normal per facet; Open3D refuses to write STL without them.
-  if (ext == ".stl") out.ComputeTriangleNormals();
-  const bool normals = ext != ".stl" && out.HasVertexNormals();
-  if (!open3d::io::WriteTriangleMesh(file.string(), out, /*write_ascii=*/false,
-                                     /*compressed=*/false, normals,
-                                     /*write_vertex_colors=*/false,
-                                     /*write_triangle_uvs=*/false)) {
-    throw MeshingError(file.string() + ": cannot write the mesh");
-  }
-}
-
-Mesh ReadMesh(const std::filesystem::path& file) {
-  std::error_code error;
-  if (!std::filesystem::is_regular_file(file, error)) {
-    throw MeshingError(file.string() + ": no such file");
-  }
-  open3d::geometry::TriangleMesh loaded;
-  if (!open3d::io::ReadTriangleMesh(file.string(), loaded) || loaded.triangles_.empty()) {
-    throw MeshingError(file.string() + ": cannot read a triangle mesh from it");
-  }
-  return FromOpen3d(loaded);
+  return {
+      {"input_points", r.input_points},
+      {"downsampled_points", r.downsampled_points},
+      {"poisson_depth", r.depth},
+      {"poisson_cell_mm", r.cell_mm},
+      {"poisson_vertices", r.poisson_vertices},
+      {"trimmed",
+       {{"far_vertices", r.trimmed_far},
+        {"low_density_vertices", r.trimmed_low_density},
+        {"small_components", r.dropped_components}}},
+      {"vertices", r.stats.vertices},
+      {"triangles", r.stats.triangles},
+      {"components", r.stats.components},
+      {"area_mm2", r.stats.area_mm2},
+      {"volume_mm3", r.stats.watertight ? nlohmann::json(r.stats.volume_mm3) : nlohmann::json()},
+      {"watertight", r.stats.watertight},
+      {"edge_manifold", r.stats.edge_manifold},
+      {"mean_edge_mm", r.stats.mean_edge_mm},
+      {"bounds_mm", {{"min", vector(r.stats.bounds.min())}, {"max", vector(r.stats.bounds.max())}}},
+      {"holes",
+       {{"count", r.holes.count()},
+        {"largest_perimeter_mm", r.holes.largest_perimeter_mm()},
+        {"open_boundary_edges", r.holes.open_boundary_edges},
+        {"loops", holes}}},
+      {"timings_s", {{"downsample", r.downsample_s}, {"poisson", r.poisson_s}, {"trim", r.trim_s}}},
+      {"warnings", r.warnings}};
 }
 
 std::string Open3dVersion() {

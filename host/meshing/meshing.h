@@ -1,28 +1,17 @@
 #pragma once
 
-#include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "common/mesh/point_cloud.h"
+#include "common/mesh/triangle_mesh.h"
 
 namespace mirrorscan::meshing {
-
-// Points with outward unit normals, millimetres, world frame (z up, floor at 0).
-struct OrientedCloud {
-  std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector3d> normals;
-};
-
-// An indexed triangle mesh, millimetres, world frame; triangles counter-clockwise seen
-// from outside. vertex_normals is empty or one unit normal per vertex.
-struct Mesh {
-  std::vector<Eigen::Vector3d> vertices;
-  std::vector<Eigen::Vector3i> triangles;
-  std::vector<Eigen::Vector3d> vertex_normals;
-};
 
 // The input cannot give a usable mesh (too few points, no normals, a cloud that covers
 // too little of a body); what() says why in one line.
@@ -94,7 +83,7 @@ struct MeshStats {
 };
 
 struct MeshingResult {
-  Mesh mesh;
+  TriangleMesh mesh;  // with vertex normals
   MeshStats stats;
   HoleReport holes;
   int input_points = 0;
@@ -109,22 +98,18 @@ struct MeshingResult {
   std::vector<std::string> warnings;
 };
 
-// Poisson surface from an oriented cloud (Open3D), trimmed where the data do not support
-// it unless options.watertight. Throws MeshingError when the cloud cannot give a body
-// surface, std::invalid_argument on bad options.
-MeshingResult MeshCloud(const OrientedCloud& cloud, const MeshingOptions& options);
+// Poisson surface from the cloud's points and their outward normals (Open3D), trimmed
+// where the data do not support it unless options.watertight. Throws MeshingError when the
+// cloud cannot give a body surface, std::invalid_argument on bad options.
+MeshingResult MeshCloud(const PointCloud& cloud, const MeshingOptions& options);
 
 // Closed loops of edges used by one triangle only.
-HoleReport FindHoles(const Mesh& mesh);
-MeshStats ComputeStats(const Mesh& mesh);
+HoleReport FindHoles(const TriangleMesh& mesh);
+MeshStats ComputeStats(const TriangleMesh& mesh);
 
-// Reads x, y, z, nx, ny, nz of a PLY point cloud (other properties are ignored). A
-// missing or unreadable file or one without normals is a MeshingError naming the file.
-OrientedCloud ReadOrientedCloud(const std::filesystem::path& file);
-// Writes PLY (binary, with vertex normals), OBJ or STL (binary), by extension; mm.
-void WriteMesh(const Mesh& mesh, const std::filesystem::path& file);
-// Reads a PLY, OBJ or STL mesh; a MeshingError naming the file if it has no triangles.
-Mesh ReadMesh(const std::filesystem::path& file);
+// The result for summaries (summary.json's "mesh", `mesh --json`): points, Poisson depth
+// and cell, what trimming dropped, the mesh's statistics, holes, timings and warnings.
+nlohmann::json SummaryJson(const MeshingResult& result);
 
 // The Open3D version meshing was built against ("0.16.1").
 std::string Open3dVersion();

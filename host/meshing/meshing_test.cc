@@ -2,13 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <numeric>
 #include <random>
 
 #include <gtest/gtest.h>
-#include <open3d/t/geometry/RaycastingScene.h>
 
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
@@ -17,13 +14,11 @@
 namespace mirrorscan::meshing {
 namespace {
 
-namespace fs = std::filesystem;
-
 // A sphere of radius r about c sampled on a Fibonacci lattice, optionally without the cap
 // above polar angle `cap_rad` (measured from +z), with radial noise.
-OrientedCloud SampleSphere(double radius, const Eigen::Vector3d& center, int count,
-                           double cap_rad = 0.0, double noise_mm = 0.0) {
-  OrientedCloud cloud;
+PointCloud SampleSphere(double radius, const Eigen::Vector3d& center, int count,
+                        double cap_rad = 0.0, double noise_mm = 0.0) {
+  PointCloud cloud;
   std::mt19937 random(7);
   std::normal_distribution<double> noise(0.0, noise_mm);
   const double golden = M_PI * (3.0 - std::sqrt(5.0));
@@ -32,8 +27,10 @@ OrientedCloud SampleSphere(double radius, const Eigen::Vector3d& center, int cou
     if (std::acos(z) < cap_rad) continue;
     const double r = std::sqrt(1.0 - z * z);
     const Eigen::Vector3d n(r * std::cos(golden * i), r * std::sin(golden * i), z);
-    cloud.points.push_back(center + n * (radius + (noise_mm > 0 ? noise(random) : 0.0)));
-    cloud.normals.push_back(n);
+    CloudPoint& point = cloud.points.emplace_back();
+    point.point_in_world =
+        (center + n * (radius + (noise_mm > 0 ? noise(random) : 0.0))).cast<float>();
+    point.normal = n.cast<float>();
   }
   return cloud;
 }
@@ -47,7 +44,7 @@ MeshingOptions SmallOptions() {
 }
 
 TEST(FindHoles, SquareHasOneHoleOfItsPerimeter) {
-  Mesh square;
+  TriangleMesh square;
   square.vertices = {{0, 0, 0}, {10, 0, 0}, {10, 10, 0}, {0, 10, 0}};
   square.triangles = {{0, 1, 2}, {0, 2, 3}};
   const HoleReport report = FindHoles(square);
@@ -58,7 +55,7 @@ TEST(FindHoles, SquareHasOneHoleOfItsPerimeter) {
 }
 
 TEST(FindHoles, ClosedTetrahedronHasNone) {
-  Mesh tetrahedron;
+  TriangleMesh tetrahedron;
   tetrahedron.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   tetrahedron.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
   EXPECT_EQ(FindHoles(tetrahedron).count(), 0);
@@ -111,7 +108,7 @@ TEST(MeshCloud, WatertightKeepsTheClosedSurface) {
 }
 
 TEST(MeshCloud, SameCloudGivesTheSameMesh) {
-  const OrientedCloud cloud = SampleSphere(100.0, {0, 0, 300}, 20000, 0.7, 0.2);
+  const PointCloud cloud = SampleSphere(100.0, {0, 0, 300}, 20000, 0.7, 0.2);
   const MeshingResult first = MeshCloud(cloud, SmallOptions());
   for (int run = 0; run < 3; ++run) {
     const MeshingResult again = MeshCloud(cloud, SmallOptions());
@@ -121,15 +118,12 @@ TEST(MeshCloud, SameCloudGivesTheSameMesh) {
 }
 
 TEST(MeshCloud, RefusesWhatCannotBeABody) {
-  EXPECT_THROW(MeshCloud(OrientedCloud{}, SmallOptions()), MeshingError);
-  OrientedCloud sphere = SampleSphere(100.0, {0, 0, 300}, 20000);
+  EXPECT_THROW(MeshCloud(PointCloud{}, SmallOptions()), MeshingError);
+  PointCloud sphere = SampleSphere(100.0, {0, 0, 300}, 20000);
   // Only what faces the camera (-y): one view.
-  OrientedCloud front;
-  for (size_t i = 0; i < sphere.points.size(); ++i) {
-    if (sphere.normals[i].y() < -0.3) {
-      front.points.push_back(sphere.points[i]);
-      front.normals.push_back(sphere.normals[i]);
-    }
+  PointCloud front;
+  for (const CloudPoint& point : sphere.points) {
+    if (point.normal.y() < -0.3) front.points.push_back(point);
   }
   try {
     MeshCloud(front, SmallOptions());
@@ -138,36 +132,13 @@ TEST(MeshCloud, RefusesWhatCannotBeABody) {
     EXPECT_NE(std::string(e.what()).find("does not go round a body"), std::string::npos)
         << e.what();
   }
-  OrientedCloud no_normals = sphere;
-  no_normals.normals.pop_back();
+  // Without normals (another program's cloud) nothing orients the surface.
+  PointCloud no_normals = sphere;
+  for (CloudPoint& point : no_normals.points) point.normal.setZero();
   EXPECT_THROW(MeshCloud(no_normals, SmallOptions()), MeshingError);
   MeshingOptions bad = SmallOptions();
   bad.threads = 0;
   EXPECT_THROW(MeshCloud(sphere, bad), std::invalid_argument);
-}
-
-TEST(MeshFiles, WrittenFormatsReadBack) {
-  const fs::path dir = fs::temp_directory_path() / "meshing_test_files";
-  fs::create_directories(dir);
-  const MeshingResult result = MeshCloud(SampleSphere(100.0, {0, 0, 300}, 8000), SmallOptions());
-  for (const char* name : {"m.ply", "m.obj", "m.stl"}) {
-    WriteMesh(result.mesh, dir / name);
-    const Mesh back = ReadMesh(dir / name);
-    EXPECT_EQ(back.triangles.size(), result.mesh.triangles.size()) << name;
-    // STL repeats the vertices of each facet.
-    const Eigen::AlignedBox3d bounds = ComputeStats(back).bounds;
-    EXPECT_LT((bounds.min() - result.stats.bounds.min()).norm(), 1e-3) << name;
-    EXPECT_LT((bounds.max() - result.stats.bounds.max()).norm(), 1e-3) << name;
-  }
-  // Binary STL: 80-byte header, a count, 50 bytes per facet.
-  EXPECT_EQ(fs::file_size(dir / "m.stl"), 84 + 50 * result.mesh.triangles.size());
-  std::ifstream ply(dir / "m.ply", std::ios::binary);
-  std::string header(200, '\0');
-  ply.read(header.data(), header.size());
-  EXPECT_NE(header.find("format binary_little_endian"), std::string::npos);
-  EXPECT_THROW(WriteMesh(result.mesh, dir / "m.xyz"), MeshingError);
-  EXPECT_THROW(ReadOrientedCloud(dir / "missing.ply"), MeshingError);
-  fs::remove_all(dir);
 }
 
 // The mannequin's truth: the virtual cabinet's exact laser-lit stripe points over the
@@ -190,25 +161,6 @@ class MannequinMesh : public ::testing::Test {
 testing_clouds::TruthCloud* MannequinMesh::truth_ = nullptr;
 MeshingResult* MannequinMesh::result_ = nullptr;
 
-std::vector<float> DistancesTo(const Mesh& surface, const std::vector<Eigen::Vector3d>& points) {
-  namespace o3c = open3d::core;
-  std::vector<float> vertices, queries;
-  std::vector<uint32_t> triangles;
-  for (const auto& v : surface.vertices)
-    vertices.insert(vertices.end(), {float(v.x()), float(v.y()), float(v.z())});
-  for (const auto& t : surface.triangles)
-    triangles.insert(triangles.end(), {uint32_t(t[0]), uint32_t(t[1]), uint32_t(t[2])});
-  for (const auto& p : points)
-    queries.insert(queries.end(), {float(p.x()), float(p.y()), float(p.z())});
-  open3d::t::geometry::RaycastingScene scene;
-  scene.AddTriangles(o3c::Tensor(vertices, {long(surface.vertices.size()), 3}, o3c::Float32),
-                     o3c::Tensor(triangles, {long(surface.triangles.size()), 3}, o3c::UInt32));
-  const o3c::Tensor distance =
-      scene.ComputeDistance(o3c::Tensor(queries, {long(points.size()), 3}, o3c::Float32));
-  const float* d = distance.GetDataPtr<float>();
-  return std::vector<float>(d, d + points.size());
-}
-
 double Quantile(std::vector<float> values, double q) {
   const size_t k = static_cast<size_t>(q * (values.size() - 1));
   std::nth_element(values.begin(), values.begin() + k, values.end());
@@ -216,7 +168,8 @@ double Quantile(std::vector<float> values, double q) {
 }
 
 TEST_F(MannequinMesh, MeshLiesOnTheTruthSurface) {
-  const std::vector<float> distance = DistancesTo(truth_->surface, result_->mesh.vertices);
+  const std::vector<float> distance =
+      testing_clouds::DistancesTo(truth_->surface, result_->mesh.vertices);
   const double mean = std::accumulate(distance.begin(), distance.end(), 0.0) / distance.size();
   const double p95 = Quantile(distance, 0.95);
   RecordProperty("mean_mm", std::to_string(mean));
@@ -229,7 +182,8 @@ TEST_F(MannequinMesh, MeshLiesOnTheTruthSurface) {
 }
 
 TEST_F(MannequinMesh, CoversWhatTheCabinetSees) {
-  const std::vector<float> distance = DistancesTo(result_->mesh, truth_->exact_points);
+  const std::vector<float> distance =
+      testing_clouds::DistancesTo(result_->mesh, truth_->exact_points);
   const double within =
       std::count_if(distance.begin(), distance.end(), [](float d) { return d <= 2.0f; }) /
       static_cast<double>(distance.size());

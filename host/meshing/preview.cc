@@ -68,7 +68,7 @@ void DrawAnnotations(cv::Mat* image, const PreviewProjection& projection, Side s
 struct EmbreeScene {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  explicit EmbreeScene(const Mesh& mesh) {
+  explicit EmbreeScene(const TriangleMesh& mesh) {
     // One thread: previews are small, and the job's thread budget is Poisson's.
     device = rtcNewDevice("threads=1");
     if (!device) throw std::runtime_error("preview: Embree device could not be created");
@@ -139,7 +139,7 @@ PreviewProjection FrameView(const Eigen::AlignedBox3d& bounds, Side side, int he
   return projection;
 }
 
-PreviewImage RenderMeshPreview(const Mesh& mesh, Side side, const PreviewOptions& options) {
+PreviewImage RenderMeshPreview(const TriangleMesh& mesh, Side side, const PreviewOptions& options) {
   if (mesh.triangles.empty()) throw std::invalid_argument("preview: the mesh has no triangles");
   Eigen::AlignedBox3d bounds;
   for (const Eigen::Vector3d& v : mesh.vertices) bounds.extend(v);
@@ -200,17 +200,15 @@ PreviewImage RenderMeshPreview(const Mesh& mesh, Side side, const PreviewOptions
   return out;
 }
 
-PreviewImage RenderCloudPreview(const OrientedCloud& cloud, const std::vector<uint8_t>& labels,
+PreviewImage RenderCloudPreview(const PointCloud& cloud, ColourBy colour_by,
                                 const std::vector<std::string>& label_names, Side side,
                                 const PreviewOptions& options,
                                 std::optional<Eigen::AlignedBox3d> bounds) {
   if (cloud.points.empty()) throw std::invalid_argument("preview: the cloud is empty");
-  if (labels.size() != cloud.points.size() || cloud.normals.size() != cloud.points.size()) {
-    throw std::invalid_argument("preview: one label and one normal per point needed");
-  }
+  auto point_at = [&](size_t i) { return cloud.points[i].point_in_world.cast<double>().eval(); };
   if (!bounds) {
     bounds.emplace();
-    for (const Eigen::Vector3d& point : cloud.points) bounds->extend(point);
+    for (size_t i = 0; i < cloud.points.size(); ++i) bounds->extend(point_at(i));
   }
   PreviewImage out;
   out.projection = FrameView(*bounds, side, options.height_px);
@@ -220,7 +218,7 @@ PreviewImage RenderCloudPreview(const OrientedCloud& cloud, const std::vector<ui
   out.image = cv::Mat(options.height_px, width, CV_8UC3, cv::Scalar(kBackground));
 
   std::vector<double> depth(cloud.points.size());
-  for (size_t i = 0; i < depth.size(); ++i) depth[i] = cloud.points[i].dot(p.forward);
+  for (size_t i = 0; i < depth.size(); ++i) depth[i] = point_at(i).dot(p.forward);
   std::vector<size_t> order(cloud.points.size());
   std::iota(order.begin(), order.end(), 0);
   // Far first, so nearer dots cover them; ties in index order (the same image every run).
@@ -229,10 +227,13 @@ PreviewImage RenderCloudPreview(const OrientedCloud& cloud, const std::vector<ui
   const int radius_px = std::max(1, static_cast<int>(std::lround(1.5 / p.mm_per_px)));
   constexpr int kPalette_size = sizeof(kPalette) / sizeof(kPalette[0]);
   for (size_t i : order) {
-    const Eigen::Vector2d pixel = p.Pixel(cloud.points[i]);
-    const double facing = -cloud.normals[i].dot(p.forward);
+    const CloudPoint& point = cloud.points[i];
+    const Eigen::Vector2d pixel = p.Pixel(point_at(i));
+    const double facing = -point.normal.cast<double>().dot(p.forward);
     const double shade = 0.35 + 0.65 * std::max(0.0, facing);
-    const cv::Scalar colour = kPalette[labels[i] % kPalette_size] * shade;
+    const int label = colour_by == ColourBy::kView ? static_cast<int>(point.view)
+                                                   : static_cast<int>(point.camera);
+    const cv::Scalar colour = kPalette[label % kPalette_size] * shade;
     cv::circle(out.image,
                {static_cast<int>(std::lround(pixel.x())), static_cast<int>(std::lround(pixel.y()))},
                radius_px, colour, cv::FILLED, cv::LINE_8);

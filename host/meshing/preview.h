@@ -43,11 +43,15 @@ struct PreviewImage {
 PreviewProjection FrameView(const Eigen::AlignedBox3d& bounds, Side side, int height_px);
 
 // The mesh shaded (Embree ray casting, orthographic), with a scale bar and the title.
-PreviewImage RenderMeshPreview(const Mesh& mesh, Side side, const PreviewOptions& options);
+PreviewImage RenderMeshPreview(const TriangleMesh& mesh, Side side, const PreviewOptions& options);
 
-// Points drawn as dots (OpenCV, far ones first) coloured by a label per point (a view or a
-// camera), shaded by how their normal faces the viewer, with a legend of label_names.
-PreviewImage RenderCloudPreview(const OrientedCloud& cloud, const std::vector<uint8_t>& labels,
+// What colours a cloud's point: the view or the camera that saw it.
+enum class ColourBy { kView, kCamera };
+
+// Points drawn as dots (OpenCV, far ones first) coloured by their view or camera, shaded by
+// how their normal faces the viewer, with a legend of label_names (the views' or cameras'
+// names in order; none: no legend).
+PreviewImage RenderCloudPreview(const PointCloud& cloud, ColourBy colour_by,
                                 const std::vector<std::string>& label_names, Side side,
                                 const PreviewOptions& options,
                                 std::optional<Eigen::AlignedBox3d> bounds = std::nullopt);

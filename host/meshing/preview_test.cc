@@ -53,7 +53,7 @@ void ExpectBodyWhereItIs(const PreviewImage& preview, const std::vector<Eigen::V
 }
 
 TEST(MeshPreview, ShowsTheBodyWhereItIs) {
-  const Mesh truth = testing_clouds::MannequinSurface();
+  const TriangleMesh truth = testing_clouds::MannequinSurface();
   PreviewOptions options;
   options.height_px = 600;
   options.title = "test-scan";
@@ -69,7 +69,7 @@ TEST(MeshPreview, ShowsTheBodyWhereItIs) {
 }
 
 TEST(MeshPreview, FrontAndBackAreMirrorImages) {
-  const Mesh truth = testing_clouds::MannequinSurface();
+  const TriangleMesh truth = testing_clouds::MannequinSurface();
   PreviewOptions options;
   options.height_px = 400;
   cv::Mat front = Foreground(RenderMeshPreview(truth, Side::kFront, options).image);
@@ -87,23 +87,25 @@ TEST(CloudPreview, ShowsEachViewInItsColour) {
   PreviewOptions options;
   options.height_px = 600;
   // Without a legend, which may overlap the body's band.
-  const PreviewImage front = RenderCloudPreview(truth.cloud, truth.view, {}, Side::kFront, options);
+  const PreviewImage front =
+      RenderCloudPreview(truth.cloud, ColourBy::kView, {}, Side::kFront, options);
   ExpectBodyWhereItIs(front, truth.exact_points, 0.03, "cloud front");
   // Each view's points in a colour of their own: where only the left mirror sees the body
   // (surface facing back-left) the colour differs from where only the right one does.
-  const PreviewImage back = RenderCloudPreview(truth.cloud, truth.view, {}, Side::kBack, options);
+  const PreviewImage back =
+      RenderCloudPreview(truth.cloud, ColourBy::kView, {}, Side::kBack, options);
   cv::Vec3d left_colour(0, 0, 0), right_colour(0, 0, 0);
   int left_count = 0, right_count = 0;
-  for (size_t i = 0; i < truth.cloud.points.size(); ++i) {
-    const Eigen::Vector3d& n = truth.cloud.normals[i];
+  for (const CloudPoint& point : truth.cloud.points) {
+    const Eigen::Vector3d n = point.normal.cast<double>();
     const double towards_mirror = std::abs(n.x()) * std::sqrt(3.0) / 2 + n.y() / 2;
-    if (truth.view[i] == 0 || towards_mirror < 0.95 || (n.x() < 0) != (truth.view[i] == 1))
-      continue;
-    const Eigen::Vector2d pixel = back.projection.Pixel(truth.cloud.points[i]);
+    const bool left = point.view == PointView::kLeft;
+    if (point.view == PointView::kCenter || towards_mirror < 0.95 || (n.x() < 0) != left) continue;
+    const Eigen::Vector2d pixel = back.projection.Pixel(point.point_in_world.cast<double>());
     const cv::Vec3b bgr =
         back.image.at<cv::Vec3b>(static_cast<int>(pixel.y()), static_cast<int>(pixel.x()));
-    (truth.view[i] == 1 ? left_colour : right_colour) += cv::Vec3d(bgr[0], bgr[1], bgr[2]);
-    ++(truth.view[i] == 1 ? left_count : right_count);
+    (left ? left_colour : right_colour) += cv::Vec3d(bgr[0], bgr[1], bgr[2]);
+    ++(left ? left_count : right_count);
   }
   ASSERT_GT(left_count, 100);
   ASSERT_GT(right_count, 100);
@@ -111,8 +113,8 @@ TEST(CloudPreview, ShowsEachViewInItsColour) {
 }
 
 TEST(Preview, RefusesEmptyInput) {
-  EXPECT_THROW(RenderMeshPreview(Mesh{}, Side::kFront, {}), std::invalid_argument);
-  EXPECT_THROW(RenderCloudPreview(OrientedCloud{}, {}, {}, Side::kFront, {}),
+  EXPECT_THROW(RenderMeshPreview(TriangleMesh{}, Side::kFront, {}), std::invalid_argument);
+  EXPECT_THROW(RenderCloudPreview(PointCloud{}, ColourBy::kView, {}, Side::kFront, {}),
                std::invalid_argument);
 }
 

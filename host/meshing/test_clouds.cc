@@ -1,5 +1,6 @@
 #include "host/meshing/test_clouds.h"
 
+#include <memory>
 #include <random>
 #include <string>
 
@@ -11,67 +12,79 @@
 namespace mirrorscan::meshing::testing_clouds {
 
 namespace {
+
+namespace o3c = open3d::core;
+
 virtual_cabinet::Scene MannequinScene() {
   return virtual_cabinet::Scene::Load(std::string(MIRRORSCAN_SOURCE_DIR) +
                                       "/boards/virtual/scenes/mannequin.json");
 }
+
+// The surface for Open3D's distance and closest-point queries (in float).
+std::unique_ptr<open3d::t::geometry::RaycastingScene> QueryScene(const TriangleMesh& surface) {
+  std::vector<float> vertices;
+  std::vector<uint32_t> triangles;
+  for (const auto& v : surface.vertices)
+    vertices.insert(vertices.end(), {float(v.x()), float(v.y()), float(v.z())});
+  for (const auto& t : surface.triangles)
+    triangles.insert(triangles.end(), {uint32_t(t[0]), uint32_t(t[1]), uint32_t(t[2])});
+  auto scene = std::make_unique<open3d::t::geometry::RaycastingScene>();
+  scene->AddTriangles(o3c::Tensor(vertices, {long(surface.vertices.size()), 3}, o3c::Float32),
+                      o3c::Tensor(triangles, {long(surface.triangles.size()), 3}, o3c::UInt32));
+  return scene;
+}
+
+o3c::Tensor Queries(const std::vector<Eigen::Vector3d>& points) {
+  std::vector<float> queries;
+  for (const auto& p : points)
+    queries.insert(queries.end(), {float(p.x()), float(p.y()), float(p.z())});
+  return o3c::Tensor(queries, {long(points.size()), 3}, o3c::Float32);
+}
+
 }  // namespace
 
-Mesh MannequinSurface() {
-  const virtual_cabinet::Scene scene = MannequinScene();
-  Mesh mesh;
-  mesh.vertices = scene.subject.mesh.vertices;
-  mesh.triangles = scene.subject.mesh.triangles;
-  return mesh;
-}
+TriangleMesh MannequinSurface() { return MannequinScene().subject.mesh; }
 
 TruthCloud MannequinTruthCloud(double noise_mm, int frame_step) {
   using virtual_cabinet::Material;
   const virtual_cabinet::Scene scene = MannequinScene();
   const virtual_cabinet::Renderer renderer(scene);
   TruthCloud truth;
+  std::vector<std::pair<uint8_t, uint8_t>> camera_view;
   for (int frame = 0; frame < scene.frames; frame += frame_step) {
     for (int camera = 0; camera < static_cast<int>(scene.cameras.size()); ++camera) {
       for (const auto& peak : renderer.Truth(camera, scene.FrameTime(frame))) {
         if (peak.material != Material::kSubject || static_cast<int>(peak.view) > 2) continue;
         truth.exact_points.push_back(peak.point_in_world);
-        truth.camera.push_back(static_cast<uint8_t>(camera));
-        truth.view.push_back(static_cast<uint8_t>(peak.view));
+        camera_view.emplace_back(static_cast<uint8_t>(camera), static_cast<uint8_t>(peak.view));
       }
     }
   }
   const auto& subject = scene.subject.mesh;
-  truth.surface.vertices = subject.vertices;
-  truth.surface.triangles = subject.triangles;
+  truth.surface = subject;
 
-  namespace o3c = open3d::core;
-  std::vector<float> vertices, queries;
-  std::vector<uint32_t> triangles;
-  for (const auto& v : subject.vertices) {
-    vertices.insert(vertices.end(), {float(v.x()), float(v.y()), float(v.z())});
-  }
-  for (const auto& t : subject.triangles) {
-    triangles.insert(triangles.end(), {uint32_t(t[0]), uint32_t(t[1]), uint32_t(t[2])});
-  }
-  for (const auto& p : truth.exact_points) {
-    queries.insert(queries.end(), {float(p.x()), float(p.y()), float(p.z())});
-  }
-  open3d::t::geometry::RaycastingScene raycasting;
-  raycasting.AddTriangles(o3c::Tensor(vertices, {long(subject.vertices.size()), 3}, o3c::Float32),
-                          o3c::Tensor(triangles, {long(subject.triangles.size()), 3}, o3c::UInt32));
-  const auto closest = raycasting.ComputeClosestPoints(
-      o3c::Tensor(queries, {long(truth.exact_points.size()), 3}, o3c::Float32));
+  const auto closest = QueryScene(subject)->ComputeClosestPoints(Queries(truth.exact_points));
   const o3c::Tensor ids = closest.at("primitive_ids").To(o3c::Int64);
   const int64_t* id = ids.GetDataPtr<int64_t>();
   std::mt19937 random(11);
   std::normal_distribution<double> noise(0.0, noise_mm);
   for (size_t i = 0; i < truth.exact_points.size(); ++i) {
     const Eigen::Vector3d normal = subject.TriangleNormal(static_cast<int>(id[i]));
-    truth.cloud.points.push_back(truth.exact_points[i] +
-                                 (noise_mm > 0 ? noise(random) : 0.0) * normal);
-    truth.cloud.normals.push_back(normal);
+    CloudPoint& point = truth.cloud.points.emplace_back();
+    point.point_in_world =
+        (truth.exact_points[i] + (noise_mm > 0 ? noise(random) : 0.0) * normal).cast<float>();
+    point.normal = normal.cast<float>();
+    point.camera = camera_view[i].first;
+    point.view = static_cast<PointView>(camera_view[i].second);
   }
   return truth;
+}
+
+std::vector<float> DistancesTo(const TriangleMesh& surface,
+                               const std::vector<Eigen::Vector3d>& points) {
+  const o3c::Tensor distance = QueryScene(surface)->ComputeDistance(Queries(points));
+  const float* d = distance.GetDataPtr<float>();
+  return std::vector<float>(d, d + points.size());
 }
 
 }  // namespace mirrorscan::meshing::testing_clouds

@@ -12,11 +12,9 @@
 namespace mirrorscan::meshing::testing_clouds {
 
 struct TruthCloud {
-  OrientedCloud cloud;                        // noisy points, true normals
+  PointCloud cloud;                           // noisy points, true normals, camera and view
   std::vector<Eigen::Vector3d> exact_points;  // the same points without noise
-  std::vector<uint8_t> camera;                // per point
-  std::vector<uint8_t> view;                  // 0 centre, 1 left, 2 right
-  Mesh surface;                               // the subject's true surface
+  TriangleMesh surface;                       // the subject's true surface
 };
 
 // The mannequin scene's exact laser-lit stripe points (every `frame_step`-th frame, both
@@ -24,6 +22,10 @@ struct TruthCloud {
 // Gaussian noise of sigma `noise_mm` along it.
 TruthCloud MannequinTruthCloud(double noise_mm, int frame_step);
 // The mannequin scene's subject surface alone.
-Mesh MannequinSurface();
+TriangleMesh MannequinSurface();
+
+// Each point's distance to the surface (Open3D's RaycastingScene, in float).
+std::vector<float> DistancesTo(const TriangleMesh& surface,
+                               const std::vector<Eigen::Vector3d>& points);
 
 }  // namespace mirrorscan::meshing::testing_clouds

@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/config/calibration.h"
+#include "common/mesh/point_cloud.h"
 #include "common/scan_format/scan_format.h"
 
 namespace mirrorscan::reconstruction {
@@ -37,43 +38,13 @@ class CalibrationMismatchError : public ReconstructError {
   using ReconstructError::ReconstructError;
 };
 
-// The view a point was seen in: directly, in one mirror, or through both mirrors (the
-// first named mirror met first). Values as in the virtual cabinet's truth.
-enum class PointView : uint8_t {
-  kCenter = 0,
-  kLeft = 1,
-  kRight = 2,
-  kLeftRight = 3,
-  kRightLeft = 4
-};
+// The cloud's types are the project's one point cloud (common/mesh/point_cloud.h).
+using mirrorscan::CloudPoint;
+using mirrorscan::DecidedBy;
+using mirrorscan::PointCloud;
+using mirrorscan::PointView;
 const char* PointViewName(PointView view);
-
-// Which correspondence rule gave a point its view and laser (docs/reconstruction.md).
-enum class DecidedBy : uint8_t {
-  kCylinder = 0,
-  kVolume = 1,
-  kColumnCount = 2,
-  kLabelVote = 3,
-  kStereo = 4
-};
 const char* DecidedByName(DecidedBy rule);
-
-struct CloudPoint {
-  Eigen::Vector3f point_in_world = Eigen::Vector3f::Zero();
-  Eigen::Vector3f normal = Eigen::Vector3f::Zero();  // unit, towards the (mirrored) camera
-  uint8_t camera = 0;                                // FrameRecord::camera
-  PointView view = PointView::kCenter;
-  uint8_t laser = 0;
-  uint32_t frame = 0;    // the frame's sequence number (FrameRecord::sequence)
-  float u = 0;           // image column of the peak
-  float v = 0;           // sub-pixel row of the peak
-  float confidence = 0;  // in [0, 1]
-  DecidedBy rule = DecidedBy::kCylinder;
-};
-
-struct PointCloud {
-  std::vector<CloudPoint> points;
-};
 
 // A vertical cylinder about the cabinet's axis that holds the subject: a laser hypothesis
 // whose point falls outside it is rejected, and so is any output point. Within its core
@@ -257,12 +228,5 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
 
 nlohmann::json SummaryJson(const ReconstructSummary& summary);
 std::string SummaryText(const ReconstructSummary& summary);
-
-// Binary little-endian PLY: x y z nx ny nz (float), camera view laser (uchar), frame
-// (uint), u v confidence (float), rule (uchar, DecidedBy). Throws std::runtime_error naming the
-// file.
-void WritePly(const std::filesystem::path& path, const PointCloud& cloud);
-// Reads what WritePly writes (property order as written).
-PointCloud ReadPly(const std::filesystem::path& path);
 
 }  // namespace mirrorscan::reconstruction

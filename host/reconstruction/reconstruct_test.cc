@@ -598,39 +598,6 @@ TEST(Reconstruct, IcpTakesBackAViewMovedOffTheOthers) {
   EXPECT_LT(rms(PointView::kCenter), 0.1);
 }
 
-TEST(Reconstruct, PlyRoundTrip) {
-  PointCloud cloud;
-  for (int i = 0; i < 5; ++i) {
-    CloudPoint p;
-    p.point_in_world = Eigen::Vector3f(i, 2.5f * i, -1.0f);
-    p.normal = Eigen::Vector3f(0, 0, 1);
-    p.camera = static_cast<uint8_t>(i % 2);
-    p.view = static_cast<PointView>(i % 5);
-    p.laser = static_cast<uint8_t>(i % 3);
-    p.frame = 1000u + i;
-    p.u = 3.0f * i;
-    p.v = 0.25f * i;
-    p.confidence = 0.1f * i;
-    p.rule = static_cast<DecidedBy>(i % 4);
-    cloud.points.push_back(p);
-  }
-  const auto path = std::filesystem::temp_directory_path() / "reconstruct_test.ply";
-  WritePly(path, cloud);
-  const PointCloud back = ReadPly(path);
-  ASSERT_EQ(back.points.size(), cloud.points.size());
-  for (size_t i = 0; i < cloud.points.size(); ++i) {
-    EXPECT_EQ(back.points[i].point_in_world, cloud.points[i].point_in_world);
-    EXPECT_EQ(back.points[i].view, cloud.points[i].view);
-    EXPECT_EQ(back.points[i].frame, cloud.points[i].frame);
-    EXPECT_EQ(back.points[i].v, cloud.points[i].v);
-    EXPECT_EQ(back.points[i].confidence, cloud.points[i].confidence);
-    EXPECT_EQ(back.points[i].rule, cloud.points[i].rule);
-  }
-  std::ofstream(path) << "ply\nformat ascii 1.0\nend_header\n";
-  EXPECT_THROW(ReadPly(path), std::runtime_error);
-  std::filesystem::remove(path);
-}
-
 TEST(Reconstruct, BoundingCylinderFromBoard) {
   const auto path = std::filesystem::temp_directory_path() / "reconstruct_test_board.json";
   std::ofstream(path) << R"({"board": "x", "reconstruction": {"bounding_cylinder":

@@ -1,12 +1,19 @@
-#include "boards/virtual/mesh.h"
+#include "common/mesh/triangle_mesh.h"
 
 #include <utility>
 
-namespace mirrorscan::virtual_cabinet {
+namespace mirrorscan {
 
 void TriangleMesh::Append(const TriangleMesh& other) {
+  const bool normals = HasVertexNormals() && other.HasVertexNormals();
   const int offset = static_cast<int>(vertices.size());
   vertices.insert(vertices.end(), other.vertices.begin(), other.vertices.end());
+  if (normals) {
+    vertex_normals.insert(vertex_normals.end(), other.vertex_normals.begin(),
+                          other.vertex_normals.end());
+  } else {
+    vertex_normals.clear();
+  }
   triangles.reserve(triangles.size() + other.triangles.size());
   for (const Eigen::Vector3i& t : other.triangles) {
     triangles.push_back(t + Eigen::Vector3i::Constant(offset));
@@ -15,6 +22,10 @@ void TriangleMesh::Append(const TriangleMesh& other) {
 
 void TriangleMesh::Transform(const Eigen::Affine3d& transform) {
   for (Eigen::Vector3d& v : vertices) v = transform * v;
+  // Normals are covectors: they turn with the inverse transpose (a scaling squeezes them
+  // the other way).
+  const Eigen::Matrix3d normal_transform = transform.linear().inverse().transpose();
+  for (Eigen::Vector3d& n : vertex_normals) n = (normal_transform * n).normalized();
   // A mirroring transform turns counter-clockwise into clockwise; swap two corners so
   // the triangles stay counter-clockwise seen from outside.
   if (transform.linear().determinant() < 0.0) {
@@ -34,4 +45,4 @@ Eigen::AlignedBox3d TriangleMesh::Bounds() const {
   return box;
 }
 
-}  // namespace mirrorscan::virtual_cabinet
+}  // namespace mirrorscan

@@ -1,16 +1,8 @@
-#include "boards/virtual/mesh.h"
-
-#include <filesystem>
-#include <fstream>
-#include <string>
-
-#include <unistd.h>
+#include "common/mesh/triangle_mesh.h"
 
 #include <gtest/gtest.h>
 
-#include "boards/virtual/mesh_io.h"
-
-namespace mirrorscan::virtual_cabinet {
+namespace mirrorscan {
 namespace {
 
 // Unit tetrahedron, counter-clockwise seen from outside.
@@ -65,6 +57,22 @@ TEST(MeshTest, RotationKeepsWindingAndMovesNormals) {
   EXPECT_TRUE(mesh.TriangleNormal(0).isApprox(Eigen::Vector3d(0, 1, 0), 1e-12));
 }
 
+TEST(MeshTest, TransformTurnsVertexNormalsAndAppendKeepsThemOnlyFromBoth) {
+  TriangleMesh mesh = Tetrahedron();
+  mesh.vertex_normals.assign(4, Eigen::Vector3d(1, 1, 0).normalized());
+  // Squeezed along x: a normal of the 45-degree face leans towards x (the inverse
+  // transpose), not away from it as a point would.
+  mesh.Transform(Eigen::Affine3d(Eigen::Scaling(Eigen::Vector3d(0.5, 1, 1))));
+  EXPECT_TRUE(mesh.vertex_normals[0].isApprox(Eigen::Vector3d(2, 1, 0).normalized(), 1e-12));
+  TriangleMesh both = mesh;
+  both.Append(mesh);
+  EXPECT_EQ(both.vertex_normals.size(), 8u);
+  EXPECT_TRUE(both.HasVertexNormals());
+  both.Append(Tetrahedron());
+  EXPECT_TRUE(both.vertex_normals.empty());
+  EXPECT_EQ(both.vertices.size(), 12u);
+}
+
 TEST(MeshTest, Bounds) {
   EXPECT_TRUE(TriangleMesh().Bounds().isEmpty());
   TriangleMesh mesh = Tetrahedron();
@@ -76,54 +84,5 @@ TEST(MeshTest, Bounds) {
   EXPECT_TRUE(TriangleMesh().empty());
 }
 
-class MeshIoTest : public ::testing::TestWithParam<std::string> {};
-
-// Open3D writes, Open3D reads: every format keeps the triangles' corners and winding
-// (STL stores no shared vertices, so compare corner by corner).
-TEST_P(MeshIoTest, RoundTrip) {
-  const std::filesystem::path dir =
-      std::filesystem::path(::testing::TempDir()) / ("mesh_io_test_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  const std::filesystem::path file = dir / ("tetra" + GetParam());
-  TriangleMesh mesh = Tetrahedron();
-  mesh.Transform(Eigen::Affine3d(Eigen::Translation3d(10, 20, 30)));
-  WriteMeshFile(mesh, file);
-  const TriangleMesh back = ReadMeshFile(file);
-  ASSERT_EQ(back.triangles.size(), 4u);
-  for (int t = 0; t < 4; ++t) {
-    for (int k = 0; k < 3; ++k) {
-      EXPECT_TRUE(
-          back.vertices[back.triangles[t][k]].isApprox(mesh.vertices[mesh.triangles[t][k]], 1e-6))
-          << GetParam() << " triangle " << t << " corner " << k;
-    }
-  }
-  std::filesystem::remove_all(dir);
-}
-
-INSTANTIATE_TEST_SUITE_P(Formats, MeshIoTest, ::testing::Values(".ply", ".obj", ".stl"));
-
-TEST(MeshIoErrorTest, NamesTheFileAndTheProblem) {
-  const std::filesystem::path dir =
-      std::filesystem::path(::testing::TempDir()) / ("mesh_io_error_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  try {
-    ReadMeshFile(dir / "missing.ply");
-    FAIL() << "no error";
-  } catch (const MeshIoError& e) {
-    EXPECT_EQ(std::string(e.what()), (dir / "missing.ply").string() + ": no such file");
-  }
-  std::ofstream(dir / "garbage.ply") << "this is not a ply file\n";
-  EXPECT_THROW(ReadMeshFile(dir / "garbage.ply"), MeshIoError);
-  std::ofstream(dir / "x.xyz") << "0 0 0\n";
-  try {
-    ReadMeshFile(dir / "x.xyz");
-    FAIL() << "no error";
-  } catch (const MeshIoError& e) {
-    EXPECT_NE(std::string(e.what()).find("unsupported mesh format \".xyz\""), std::string::npos)
-        << e.what();
-  }
-  std::filesystem::remove_all(dir);
-}
-
 }  // namespace
-}  // namespace mirrorscan::virtual_cabinet
+}  // namespace mirrorscan
