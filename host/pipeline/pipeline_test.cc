@@ -16,6 +16,7 @@
 #include "common/config/json_reader.h"
 #include "host/meshing/test_clouds.h"
 #include "tests/support/process.h"
+#include "tests/support/temp_dir.h"
 
 namespace mirrorscan::pipeline {
 namespace {
