@@ -20,6 +20,7 @@
 #include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "host/board/board_json.h"
 #include "host/cli/exit_status.h"
 #include "host/cli/mesh_command.h"
 #include "host/cli/progress.h"
@@ -271,7 +272,7 @@ void Run(const ProcessOptions& o) {
     reconstruction::ReconstructOptions reconstruct_options;
     if (!o.board.empty()) {
       try {
-        reconstruct_options.cylinder = reconstruction::BoundingCylinder::FromBoard(o.board);
+        reconstruct_options.cylinder = host_board::BoundingCylinderFromBoard(o.board);
       } catch (const ConfigError& e) {
         throw CommandExit(kExitUsage, e.what());
       }

@@ -7,6 +7,7 @@
 #include "common/config/calibration.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "host/board/board_json.h"
 #include "host/reconstruction/reconstruct.h"
 
 namespace mirrorscan::cli {
@@ -44,7 +45,7 @@ void Run(const ReconstructCliOptions& o) {
     std::fprintf(stderr, "reconstruct: %s: %s\n", o.scan.c_str(), archive.report.message.c_str());
 
   reconstruction::ReconstructOptions options;
-  if (!o.board.empty()) options.cylinder = reconstruction::BoundingCylinder::FromBoard(o.board);
+  if (!o.board.empty()) options.cylinder = host_board::BoundingCylinderFromBoard(o.board);
   if (o.radius_mm > 0) options.cylinder.radius_mm = o.radius_mm;
   if (o.core_radius_mm > 0) {
     if (o.core_radius_mm > options.cylinder.radius_mm)
