@@ -14,6 +14,8 @@ namespace mirrorscan::reconstruction {
 // Which rule decided a peak's hypothesis so far (the cloud's DecidedBy, and none yet).
 enum class Rule : uint8_t { kNone, kCylinder, kVolume, kColumnCount, kLabelVote, kStereo };
 
+// One peak as the stages see it: where it is, its hypotheses (Hypotheses, hypotheses.h:
+// [first_hypothesis, first_hypothesis + hypotheses)) and what the rules decided.
 struct PeakState {
   uint32_t frame = 0;  // archive frame index
   uint16_t u = 0;
@@ -21,10 +23,10 @@ struct PeakState {
   float score = 0;
   uint32_t first_hypothesis = 0;
   uint8_t hypotheses = 0;
-  uint8_t region = 0;  // the calibration view region: 0 centre, 1 left, 2 right
-  bool panel = false;
-  bool no_ray = false;
-  int16_t chosen = -1;  // index among its hypotheses
+  uint8_t region = 0;   // the calibration view region: 0 centre, 1 left, 2 right
+  bool panel = false;   // the laser fit took it as a panel's line (laser-height data)
+  bool no_ray = false;  // undistortion failed
+  int16_t chosen = -1;  // index among its hypotheses; -1: undecided or dropped
   Rule rule = Rule::kNone;
 };
 

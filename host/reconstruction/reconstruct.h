@@ -7,7 +7,7 @@
 // followed through both) and its laser (bounding cylinder, column counting, then a
 // majority vote over peaks that are neighbours in column and frame); then confidence,
 // filters, normals from the (column, frame) grid and the merged cloud of every camera and
-// view.
+// view. Each stage is a file of this folder (docs/reconstruction.md names them).
 #include <cstdint>
 #include <filesystem>
 #include <functional>
