@@ -2,12 +2,14 @@
 
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "common/config/calibration.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
 #include "host/board/board_json.h"
+#include "host/cli/exit_status.h"
 #include "host/reconstruction/reconstruct.h"
 
 namespace mirrorscan::cli {
@@ -71,6 +73,11 @@ void Run(const ReconstructCliOptions& o) {
   if (o.min_confidence >= 0) options.min_confidence = o.min_confidence;
   if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
   options.threads = o.threads;
+  try {
+    options.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw CommandExit(kExitUsage, std::string("reconstruct: ") + e.what());
+  }
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
     if (o.json) return;

@@ -86,6 +86,10 @@ struct ReconstructOptions {
   int threads = 0;
   // Progress: a stage name and how far it is in [0, 1]. May be empty.
   std::function<void(const std::string& stage, double fraction)> progress;
+
+  // Throws std::invalid_argument naming the first option out of its range (Reconstruct()
+  // calls it first). A core wider than the cylinder is allowed: the core is clipped to it.
+  void Validate() const;
 };
 
 }  // namespace mirrorscan::reconstruction

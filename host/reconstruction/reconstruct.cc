@@ -81,6 +81,7 @@ const char* DecidedByName(DecidedBy rule) {
 
 Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibration,
                            const ReconstructOptions& options) {
+  options.Validate();
   Reconstruction result;
   ReconstructSummary& summary = result.summary;
   StageTimer timer(&summary, options.progress);

@@ -83,7 +83,8 @@ struct Reconstruction {
   ReconstructSummary summary;
 };
 
-// The archive's frames (lasers on) to a cloud. Throws CalibrationMismatchError,
+// The archive's frames (lasers on) to a cloud. Throws std::invalid_argument for options out
+// of range (ReconstructOptions::Validate), CalibrationMismatchError,
 // ReconstructError (no header, no frames with peaks, a camera or view the archive needs
 // that the calibration lacks, no laser heights at all).
 Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibration,
