@@ -13,8 +13,10 @@ cmake_minimum_required(VERSION 3.25)
 
 set(_allowed_sources
     host/cli/sim_command.cc  # `mirrorscan sim`: the virtual cabinet offline
-    host/meshing/test_clouds.h host/meshing/test_clouds.cc)  # test support (meshing tests)
-set(_allowed_targets mirrorscan_cli_sim mirrorscan_meshing_test_clouds)
+    host/meshing/test_clouds.h host/meshing/test_clouds.cc  # test support (meshing tests)
+    host/reconstruction/test_sweep.h host/reconstruction/test_sweep.cc)  # (reconstruction tests)
+set(_allowed_targets mirrorscan_cli_sim mirrorscan_meshing_test_clouds
+    mirrorscan_reconstruction_test_sweep)
 
 set(_offences "")
 file(GLOB_RECURSE _sources RELATIVE ${SOURCE_DIR} ${SOURCE_DIR}/host/*.h ${SOURCE_DIR}/host/*.cc)

@@ -1,7 +1,7 @@
 // Reconstruction speed: a whole 10 s, two-camera, three-laser sweep of the mannequin
 // (docs/reconstruction.md) from the archive's bytes to the filtered, merged cloud, on the
-// given number of threads (0: every core). The sweep is rendered once outside the timing, or read from
-// MIRRORSCAN_BENCH_SCAN (an .mscan) with MIRRORSCAN_BENCH_CALIBRATION (its calibration).
+// given number of threads (0: every core). The sweep is rendered once outside the timing, or read
+// from MIRRORSCAN_BENCH_SCAN (an .mscan) with MIRRORSCAN_BENCH_CALIBRATION (its calibration).
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "boards/virtual/renderer.h"
+#include "boards/virtual/sweep_peaks.h"
 #include "common/config/calibration.h"
-#include "common/peaks/peaks.h"
 #include "common/scan_format/scan_format.h"
 #include "host/reconstruction/reconstruct.h"
 
@@ -32,29 +32,9 @@ Input Render() {
   input.calibration = Calibration::Parse(scene.TrueCalibration(), "calibration.json");
   VectorSink sink;
   ScanWriter writer(sink);
-  nlohmann::json cameras = nlohmann::json::array();
-  for (const auto& c : scene.cameras) cameras.push_back({{"name", c.name}});
-  writer.Begin({{"cameras", cameras},
-                {"lasers", {{"count", scene.lasers.count}}},
-                {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
-                {"start_steady_ns", 0},
-                {"calibration", scene.TrueCalibration()}});
-  PeakExtractor extractor;
-  for (int frame = 0; frame < scene.frames; ++frame) {
-    for (int camera = 0; camera < static_cast<int>(scene.cameras.size()); ++camera) {
-      const double t = scene.FrameTime(frame);
-      const auto image = renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame));
-      FrameRecord record;
-      record.camera = static_cast<uint8_t>(camera);
-      record.lasers_on = true;
-      record.sequence = static_cast<uint32_t>(frame);
-      record.timestamp_ns = std::llround(t * 1e9);
-      record.slide_position_mm = scene.lasers.HeightAt(0, t);
-      ExtractPeaks(ImageView{image.pixels.data(), image.width, image.height, image.width},
-                   PeakParams(), &extractor, &record.peaks);
-      writer.AppendFrame(record);
-    }
-  }
+  writer.Begin(virtual_cabinet::SweepArchiveHeader(scene));
+  for (const FrameRecord& record : virtual_cabinet::RenderSweepPeaks(scene, renderer))
+    writer.AppendFrame(record);
   writer.Finish({{"status", "complete"}});
   input.archive = sink.bytes();
   input.peaks = writer.peaks_written();

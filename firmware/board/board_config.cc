@@ -179,7 +179,7 @@ BoardConfig BoardConfig::Parse(const nlohmann::json& json, const std::string& fi
   const JsonReader r(json, file);
   r.AllowOnly({"board", "description", "cameras", "gpio", "drive", "peaks", "scan", "store",
                "service", "virtual",
-               // The host's: host/calibration and host/reconstruction read them.
+               // The host's: host/calibration and host/board read them.
                "calibration", "reconstruction"});
   BoardConfig c;
   c.board = NonEmptyString(r, "board");

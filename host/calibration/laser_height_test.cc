@@ -13,9 +13,9 @@
 
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
+#include "boards/virtual/sweep_peaks.h"
 #include "common/config/calibration.h"
 #include "common/config/json_reader.h"
-#include "common/peaks/peaks.h"
 
 namespace mirrorscan {
 namespace {
@@ -46,23 +46,10 @@ Sweep LoadScene(const nlohmann::json& scene_changes) {
 
 Sweep RenderSweep(const nlohmann::json& scene_changes, int frame_step, int cameras) {
   Sweep sweep = LoadScene(scene_changes);
-  const Renderer renderer(sweep.scene);
-  PeakExtractor extractor;
-  for (int frame = 0; frame < sweep.scene.frames; frame += frame_step) {
-    const double t = sweep.scene.FrameTime(frame);
-    for (int camera = 0; camera < cameras; ++camera) {
-      const auto image = renderer.RenderFrame(camera, t, static_cast<uint64_t>(frame));
-      FrameRecord record;
-      record.camera = static_cast<uint8_t>(camera);
-      record.lasers_on = true;
-      record.sequence = static_cast<uint32_t>(frame);
-      record.timestamp_ns = std::llround(t * 1e9);
-      record.slide_position_mm = sweep.scene.lasers.HeightAt(0, t);
-      ExtractPeaks(ImageView{image.pixels.data(), image.width, image.height, image.width},
-                   PeakParams(), &extractor, &record.peaks);
-      sweep.frames.push_back(std::move(record));
-    }
-  }
+  virtual_cabinet::SweepPeaksOptions options;
+  options.frame_step = frame_step;
+  options.cameras = cameras;
+  sweep.frames = RenderSweepPeaks(sweep.scene, Renderer(sweep.scene), options);
   return sweep;
 }
 

@@ -2,12 +2,15 @@
 
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "common/config/calibration.h"
 #include "common/mesh/cloud_io.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "host/board/board_json.h"
+#include "host/cli/exit_status.h"
 #include "host/reconstruction/reconstruct.h"
 
 namespace mirrorscan::cli {
@@ -45,7 +48,7 @@ void Run(const ReconstructCliOptions& o) {
     std::fprintf(stderr, "reconstruct: %s: %s\n", o.scan.c_str(), archive.report.message.c_str());
 
   reconstruction::ReconstructOptions options;
-  if (!o.board.empty()) options.cylinder = reconstruction::BoundingCylinder::FromBoard(o.board);
+  if (!o.board.empty()) options.cylinder = host_board::BoundingCylinderFromBoard(o.board);
   if (o.radius_mm > 0) options.cylinder.radius_mm = o.radius_mm;
   if (o.core_radius_mm > 0) {
     if (o.core_radius_mm > options.cylinder.radius_mm)
@@ -71,6 +74,11 @@ void Run(const ReconstructCliOptions& o) {
   if (o.min_confidence >= 0) options.min_confidence = o.min_confidence;
   if (o.stereo_max_mm > 0) options.stereo_max_mm = o.stereo_max_mm;
   options.threads = o.threads;
+  try {
+    options.Validate();
+  } catch (const std::invalid_argument& e) {
+    throw CommandExit(kExitUsage, std::string("reconstruct: ") + e.what());
+  }
   std::string last_stage;
   options.progress = [&](const std::string& stage, double fraction) {
     if (o.json) return;

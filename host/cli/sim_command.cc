@@ -18,6 +18,7 @@
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
 #include "boards/virtual/surface_samples.h"
+#include "boards/virtual/sweep_peaks.h"
 #include "common/config/calibration.h"
 #include "common/config/json_reader.h"
 #include "common/mesh/mesh_io.h"
@@ -195,16 +196,8 @@ void Scan(const SimOptions& o) {
           WritePng(fs::path(o.out) / scene.cameras[camera].name / name.str(), image);
         }
         if (!o.peaks.empty()) {
-          FrameRecord& record = records[job];
-          record.camera = static_cast<uint8_t>(camera);
-          record.lasers_on = !o.no_lasers;
-          record.sequence = static_cast<uint32_t>(frame);
-          record.timestamp_ns = static_cast<int64_t>(std::llround(t * 1e9));
-          // The virtual drive's position readback: laser 0's height, exact.
-          record.slide_position_mm = scene.lasers.HeightAt(0, t);
-          ExtractPeaks(
-              ImageView{image.data, image.cols, image.rows, static_cast<ptrdiff_t>(image.step[0])},
-              peak_params, &extractor, &record.peaks);
+          records[job] = virtual_cabinet::SweepFrameRecord(scene, camera, frame, rendered,
+                                                           !o.no_lasers, peak_params, &extractor);
         }
         if (!o.contact_sheet.empty() && frame % sheet_step == 0 && frame / sheet_step < 12) {
           sheet_frames[which * 12 + frame / sheet_step] = image.clone();
@@ -245,29 +238,16 @@ void Scan(const SimOptions& o) {
   WriteJson(fs::path(o.out) / "sweep.json", sweep);
   WriteJson(fs::path(o.out) / "calibration.json", scene.TrueCalibration());
   if (!o.peaks.empty()) {
-    nlohmann::json cameras_json = nlohmann::json::array();
-    for (const auto& c : scene.cameras) {
-      cameras_json.push_back({{"name", c.name},
-                              {"width", c.camera.intrinsics.width},
-                              {"height", c.camera.intrinsics.height},
-                              {"fps", c.fps}});
-    }
     ScanFileWriterOptions writer_options;
     writer_options.overwrite = true;
     ScanFileWriter writer(o.peaks, writer_options);
-    nlohmann::json header = {
-        {"device", "virtual-cabinet"},
-        {"board", "virtual"},
-        {"source", "mirrorscan sim scan"},
-        {"scene", o.scene_path},
-        {"cameras", cameras_json},
-        {"lasers", {{"count", scene.lasers.count}, {"spacing_mm", scene.lasers.spacing_mm}}},
-        // The device's header keys (docs/scan-format.md); frame time 0 is the sweep's t = 0.
-        {"slide", {{"speed_mm_s", scene.lasers.speed_mm_s}}},
-        {"start_steady_ns", 0}};
-    if (o.calibration.empty()) {
-      header["calibration"] = scene.TrueCalibration();
-    } else {
+    nlohmann::json header = virtual_cabinet::SweepArchiveHeader(scene);
+    header["device"] = "virtual-cabinet";
+    header["board"] = "virtual";
+    header["source"] = "mirrorscan sim scan";
+    header["scene"] = o.scene_path;
+    if (!o.calibration.empty()) {
+      header.erase("calibration");
       header["calibration_sha256"] = protocol::Sha256::HexOfFile(o.calibration);
       header["calibration_hash"] = Calibration::Load(o.calibration).ContentHash();
     }

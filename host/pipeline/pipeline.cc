@@ -17,6 +17,7 @@
 #include "common/mesh/mesh_io.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
+#include "host/board/board_json.h"
 #include "host/measurement/preview.h"
 #include "host/meshing/preview.h"
 #include "host/pipeline/upload.h"
@@ -250,7 +251,7 @@ class Job {
     reconstruction::ReconstructOptions options;
     if (!board_path_.empty()) {
       try {
-        options.cylinder = reconstruction::BoundingCylinder::FromBoard(board_path_);
+        options.cylinder = host_board::BoundingCylinderFromBoard(board_path_);
       } catch (const ConfigError& e) {
         throw InputError(e.what());
       }
