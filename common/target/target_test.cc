@@ -11,6 +11,8 @@
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
 
+#include "common/target/target_test_util.h"
+
 namespace mirrorscan {
 namespace {
 
@@ -19,23 +21,9 @@ using Eigen::Vector3d;
 
 constexpr double kPi = std::numbers::pi;
 
-TargetConfig RotatedConfig() {
-  TargetConfig c;
-  c.center_mm = {35.0, -20.0};
-  c.yaw_deg = 17.0;
-  c.bottom_mm = 150.0;
-  c.panel_width_mm = 450.0;
-  c.panel_height_mm = 1500.0;
-  c.marker_size_mm = 132.0;
-  return c;
-}
-
-std::vector<TargetConfig> Configs() { return {TargetConfig{}, RotatedConfig()}; }
-
-// Point coordinates in a panel's frame, computed here rather than trusted from the class.
-Vector2d PanelUv(const TargetPanel& p, const Vector3d& x) {
-  return {p.right.dot(x - p.origin), p.up.dot(x - p.origin)};
-}
+using target_test::Configs;
+using target_test::PanelUv;
+using target_test::RotatedConfig;
 
 TEST(TargetTest, PanelNormalsAre120DegreesApartAndFaceTheRightWay) {
   for (const TargetConfig& config : Configs()) {
