@@ -11,6 +11,7 @@
 
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
+#include "host/board/board_json.h"
 #include "host/calibration/calibrate.h"
 #include "tests/support/calibration_truth.h"
 
@@ -57,8 +58,7 @@ std::vector<CameraImage> TargetImages(const nlohmann::json& patch, bool with_len
 }
 
 calibration::CalibrationSettings Settings() {
-  auto settings =
-      calibration::CalibrationSettings::LoadBoard(kSource + "/boards/virtual/board.json");
+  auto settings = host_board::CalibrationSettingsFromBoard(kSource + "/boards/virtual/board.json");
   settings.limits.min_lens_coverage = 0.85;
   return settings;
 }

@@ -21,6 +21,7 @@
 #include "common/peaks/peaks.h"
 #include "common/protocol/protocol.h"
 #include "common/protocol/sha256.h"
+#include "firmware/service/api_http.h"
 #include "firmware/service/guarded_server.h"
 #include "firmware/service/preview_image.h"
 
@@ -28,40 +29,17 @@ namespace mirrorscan::service {
 namespace {
 
 namespace fs = std::filesystem;
+using internal::FileDescriptor;
+using internal::HttpError;
+using internal::kReadChunk;
+using internal::ReadAt;
+using internal::ScanIdFrom;
+using internal::SendError;
+using internal::SendJson;
+using internal::SetVersionHeader;
 using nlohmann::json;
 
-constexpr size_t kReadChunk = 64 * 1024;
 constexpr size_t kMaxQueuedEvents = 64;  // per SSE client; the oldest go first
-
-// A handler's refusal: the status and the one sentence the client sees.
-class HttpError : public std::runtime_error {
- public:
-  HttpError(int status, const std::string& message)
-      : std::runtime_error(message), status_(status) {}
-  int status() const { return status_; }
-
- private:
-  int status_;
-};
-
-void SetVersionHeader(httplib::Response& res) {
-  if (!res.has_header(std::string(protocol::kApiVersionHeader).c_str())) {
-    res.set_header(std::string(protocol::kApiVersionHeader).c_str(),
-                   std::to_string(protocol::kApiVersion));
-  }
-}
-
-void SendJson(httplib::Response& res, int status, json body) {
-  if (body.is_object() && !body.contains("api_version"))
-    body["api_version"] = protocol::kApiVersion;
-  res.status = status;
-  SetVersionHeader(res);
-  res.set_content(body.dump(), "application/json");
-}
-
-void SendError(httplib::Response& res, int status, const std::string& message) {
-  SendJson(res, status, protocol::ApiError{std::string(protocol::ErrorCode(status)), message});
-}
 
 int StoreErrorStatus(store::StoreError::Kind kind) {
   switch (kind) {
@@ -118,15 +96,6 @@ protocol::ScanSummary ToSummary(const store::ScanInfo& info) {
   return s;
 }
 
-// The id from the route, checked before anything else sees it.
-std::string ScanIdFrom(const httplib::Request& req) {
-  const std::string id = req.matches[1];
-  if (!protocol::IsValidScanId(id)) {
-    throw HttpError(400, "not a scan id (expected YYYYMMDDTHHMMSSZ-NNNN)");
-  }
-  return id;
-}
-
 std::optional<uint64_t> ParseUnsigned(const std::string& text) {
   if (text.empty() || text.size() > 19 ||
       text.find_first_not_of("0123456789") != std::string::npos) {
@@ -158,23 +127,6 @@ std::optional<ByteRange> ParseRange(const std::string& header, uint64_t size) {
   if (*first >= size) return std::nullopt;
   if (last && *last < *first) return std::nullopt;
   return ByteRange{*first, last ? std::min(*last, size - 1) : size - 1};
-}
-
-struct FileDescriptor {
-  explicit FileDescriptor(int value) : fd(value) {}
-  ~FileDescriptor() {
-    if (fd >= 0) ::close(fd);
-  }
-  FileDescriptor(const FileDescriptor&) = delete;
-  FileDescriptor& operator=(const FileDescriptor&) = delete;
-  int fd;
-};
-
-ssize_t ReadAt(int fd, char* buffer, size_t size, uint64_t offset) {
-  for (;;) {
-    const ssize_t n = ::pread(fd, buffer, size, static_cast<off_t>(offset));
-    if (n >= 0 || errno != EINTR) return n;
-  }
 }
 
 std::string FormatEvent(const scan::ScanEvent& event) {
@@ -834,56 +786,6 @@ void ApiServer::HandleCapture(const Request& req, Response& res) {
   res.set_content(pgm, "image/x-portable-graymap");
 }
 
-namespace {
-
-std::string FormatUtc(fs::file_time_type time) {
-  const auto system = std::chrono::time_point_cast<std::chrono::system_clock::duration>(
-      time - fs::file_time_type::clock::now() + std::chrono::system_clock::now());
-  const std::time_t t = std::chrono::system_clock::to_time_t(system);
-  std::tm tm{};
-  gmtime_r(&t, &tm);
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &tm);
-  return text;
-}
-
-const protocol::ResultKind& ResultKindFrom(const httplib::Request& req) {
-  const protocol::ResultKind* kind = protocol::FindResultKind(req.matches[2].str());
-  if (kind == nullptr) {
-    std::string names;
-    for (const protocol::ResultKind& k : protocol::ResultKinds()) {
-      names += (names.empty() ? "" : ", ") + std::string(k.name);
-    }
-    throw HttpError(404,
-                    "no result named \"" + req.matches[2].str() + "\" (results: " + names + ")");
-  }
-  return *kind;
-}
-
-// What the page shows must be what the name says: a PNG, a PLY, a JSON object.
-void CheckResultContent(const protocol::ResultKind& kind, const std::string& head,
-                        const std::string* whole) {
-  const std::string name(kind.name);
-  auto ends_with = [&](std::string_view suffix) {
-    return name.size() >= suffix.size() &&
-           name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  if (ends_with(".png") && head.rfind("\x89PNG\r\n\x1a\n", 0) != 0) {
-    throw HttpError(400, name + ": not a PNG image");
-  }
-  if (ends_with(".ply") && head.rfind("ply\n", 0) != 0 && head.rfind("ply\r\n", 0) != 0) {
-    throw HttpError(400, name + ": not a PLY file (no \"ply\" line)");
-  }
-  if (ends_with(".json") && whole != nullptr) {
-    const json parsed = json::parse(*whole, nullptr, false);
-    if (parsed.is_discarded() || !parsed.is_object()) {
-      throw HttpError(400, name + ": not a JSON object");
-    }
-  }
-}
-
-}  // namespace
-
 void ApiServer::HandlePreview(const Request& req, Response& res) {
   const std::string camera = req.get_param_value("camera");
   const std::string lasers = req.get_param_value("lasers");
@@ -920,92 +822,6 @@ void ApiServer::HandlePreview(const Request& req, Response& res) {
   res.set_header("X-Mirrorscan-Peaks", std::to_string(entry.peaks));
   SetVersionHeader(res);
   res.set_content(entry.png, "image/png");
-}
-
-void ApiServer::HandleListResults(const Request& req, Response& res) {
-  const std::string id = ScanIdFrom(req);
-  json results = json::array();
-  for (const store::StoredResult& r : store_.Results(id)) {
-    results.push_back(protocol::ResultInfo{r.name, r.bytes, FormatUtc(r.modified)});
-  }
-  SendJson(res, 200, {{"id", id}, {"results", results}});
-}
-
-void ApiServer::HandleGetResult(const Request& req, Response& res) {
-  const std::string id = ScanIdFrom(req);
-  const protocol::ResultKind& kind = ResultKindFrom(req);
-  const fs::path path = store_.ResultPath(id, std::string(kind.name));
-  // The descriptor keeps the bytes of this version even if an upload replaces the file.
-  auto file = std::make_shared<FileDescriptor>(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
-  if (file->fd < 0) throw HttpError(404, "scan " + id + " has no result " + std::string(kind.name));
-  struct stat info {};
-  if (::fstat(file->fd, &info) != 0) throw HttpError(500, "cannot read " + std::string(kind.name));
-  const uint64_t size = static_cast<uint64_t>(info.st_size);
-  res.status = 200;
-  res.set_header("Cache-Control", "no-store");  // a body scan: never in a shared cache
-  res.set_header("Content-Disposition",
-                 "attachment; filename=\"" + id + "-" + std::string(kind.name) + "\"");
-  SetVersionHeader(res);
-  if (size == 0) {
-    res.set_content("", std::string(kind.content_type));
-    return;
-  }
-  res.set_content_provider(size, std::string(kind.content_type),
-                           [file](size_t offset, size_t length, httplib::DataSink& sink) {
-                             std::vector<char> buffer(std::min(length, kReadChunk));
-                             const ssize_t n =
-                                 ReadAt(file->fd, buffer.data(), buffer.size(), offset);
-                             if (n <= 0) return false;
-                             return sink.write(buffer.data(), static_cast<size_t>(n));
-                           });
-}
-
-void ApiServer::HandleEmptyResult(const Request& req, Response&) {
-  ScanIdFrom(req);
-  ResultKindFrom(req);
-  throw HttpError(400, "request body: expected the result's bytes");
-}
-
-void ApiServer::HandlePutResult(const Request& req, Response& res,
-                                const httplib::ContentReader& read) {
-  const std::string id = ScanIdFrom(req);
-  const protocol::ResultKind& kind = ResultKindFrom(req);
-  const std::string name(kind.name);
-  std::unique_ptr<store::ResultUpload> upload = store_.BeginResult(id, name);
-  constexpr size_t kHead = 16;
-  const bool is_json = name.size() > 5 && name.compare(name.size() - 5, 5, ".json") == 0;
-  std::string head;   // the first bytes, for the content check
-  std::string whole;  // JSON results are parsed whole (at most 1 MiB)
-  bool too_large = false;
-  std::string store_error;
-  const bool complete = read([&](const char* data, size_t length) {
-    if (upload->bytes() + length > kind.max_bytes) {
-      too_large = true;
-      return false;
-    }
-    if (head.size() < kHead) head.append(data, std::min(length, kHead - head.size()));
-    if (is_json) whole.append(data, length);
-    try {
-      upload->Append(data, length);
-    } catch (const store::StoreError& e) {
-      store_error = e.what();
-      return false;
-    }
-    return true;
-  });
-  if (!complete) {
-    GuardedServer::CloseAfterResponse();  // the rest of the body is never read
-    if (!store_error.empty()) throw HttpError(500, store_error);
-    if (too_large) {
-      throw HttpError(413,
-                      name + " too large (limit " + std::to_string(kind.max_bytes) + " bytes)");
-    }
-    throw HttpError(400, "request body: incomplete or malformed chunked encoding");
-  }
-  if (upload->bytes() == 0) throw HttpError(400, "request body: expected the result's bytes");
-  CheckResultContent(kind, head, is_json ? &whole : nullptr);
-  upload->Commit();
-  SendJson(res, 200, {{"id", id}, {"name", name}, {"bytes", upload->bytes()}});
 }
 
 }  // namespace mirrorscan::service

@@ -48,6 +48,41 @@ TEST(BoardJson, BoundingCylinderFromBoard) {
   std::filesystem::remove(path);
 }
 
+TEST(BoardJson, CalibrationSettingsNameTheKey) {
+  const std::string source = MIRRORSCAN_SOURCE_DIR;
+  nlohmann::json board = JsonReader::ParseFile(source + "/boards/virtual/board.json");
+  board["calibration"] = {{"limits", {{"max_rms_px", -1}}}};
+  try {
+    ParseCalibrationSettings(board, "board.json");
+    FAIL() << "accepted a negative limit";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "board.json: calibration.limits.max_rms_px: must be in [0.001, 100], got -1");
+  }
+  EXPECT_EQ(CalibrationSettingsFromBoard(source + "/boards/virtual/board.json").camera_names,
+            (std::vector<std::string>{"upper", "lower"}));
+}
+
+TEST(BoardJson, PeakParamsFromBoard) {
+  const std::string source = MIRRORSCAN_SOURCE_DIR;
+  const PeakParams virtual_board = PeakParamsFromBoard(source + "/boards/virtual/board.json");
+  EXPECT_EQ(virtual_board.estimator, PeakEstimator::kAdaptive);
+  EXPECT_EQ(virtual_board.threshold_dn, 18);
+  EXPECT_EQ(virtual_board.max_peaks_per_column, 9);
+  const auto path = std::filesystem::temp_directory_path() / "host_board_peaks.json";
+  std::ofstream(path) << R"({"board": "x"})";
+  EXPECT_EQ(PeakParamsFromBoard(path).threshold_dn, PeakParams().threshold_dn);
+  std::ofstream(path) << R"({"peaks": {"threshold_dn": 300}})";
+  try {
+    PeakParamsFromBoard(path);
+    FAIL() << "accepted a threshold above 254";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(path.string() + ": peaks.threshold_dn"), std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(path);
+}
+
 // Every shipped board carries the cabinet's cylinder: it holds the A-pose mannequin whole,
 // hands (619 mm out) and head, and its core, where one hypothesis decides a peak alone,
 // holds the torso above the hands and stays in front of both mirrors.

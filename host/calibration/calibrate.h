@@ -4,7 +4,6 @@
 #pragma once
 
 #include <array>
-#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -14,7 +13,6 @@
 #include <opencv2/core/mat.hpp>
 
 #include "common/config/calibration.h"
-#include "common/config/json_reader.h"
 #include "common/target/target.h"
 #include "host/calibration/markers.h"
 
@@ -43,7 +41,8 @@ struct CalibrationLimits {
   double min_lens_coverage = 0.85;
 };
 
-// board.json's "calibration" section (every key optional) plus the camera names.
+// board.json's "calibration" section (every key optional) plus the camera names; read by
+// host/board/board_json.h.
 struct CalibrationSettings {
   std::vector<std::string> camera_names;
   TargetConfig target;
@@ -61,9 +60,6 @@ struct CalibrationSettings {
     double square_mm = 25.0;
   } lens_chessboard;
   CalibrationLimits limits;
-
-  static CalibrationSettings FromBoard(const nlohmann::json& board, const std::string& file);
-  static CalibrationSettings LoadBoard(const std::filesystem::path& board_json);
 };
 
 struct CameraImage {

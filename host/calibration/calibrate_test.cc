@@ -9,6 +9,7 @@
 
 #include "boards/virtual/renderer.h"
 #include "boards/virtual/scene.h"
+#include "host/board/board_json.h"
 #include "host/calibration/intrinsics.h"
 #include "tests/support/calibration_truth.h"
 
@@ -45,7 +46,7 @@ std::vector<CameraImage> Render(const Scene& scene, uint64_t seed = 1) {
 }
 
 CalibrationSettings Settings() {
-  return CalibrationSettings::LoadBoard(kSource + "/boards/virtual/board.json");
+  return host_board::CalibrationSettingsFromBoard(kSource + "/boards/virtual/board.json");
 }
 
 // One camera keeps the failure tests fast.
@@ -246,19 +247,6 @@ TEST(CalibrateTest, VerifyFlagsARotatedMirror) {
   EXPECT_FALSE(Mentions(changed, "right view"));
   EXPECT_FALSE(Mentions(changed, "center view"));
   EXPECT_TRUE(Mentions(changed, "recalibrate"));
-}
-
-TEST(CalibrateTest, SettingsFromBoardNameTheKey) {
-  nlohmann::json board = JsonReader::ParseFile(kSource + "/boards/virtual/board.json");
-  board["calibration"] = {{"limits", {{"max_rms_px", -1}}}};
-  try {
-    CalibrationSettings::FromBoard(board, "board.json");
-    FAIL() << "accepted a negative limit";
-  } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "board.json: calibration.limits.max_rms_px: must be in [0.001, 100], got -1");
-  }
-  EXPECT_EQ(Settings().camera_names, (std::vector<std::string>{"upper", "lower"}));
 }
 
 }  // namespace

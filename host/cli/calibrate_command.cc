@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/config/calibration.h"
+#include "host/board/board_json.h"
 #include "host/calibration/calibrate.h"
 #include "host/calibration/intrinsics.h"
 
@@ -92,7 +93,7 @@ std::vector<calibration::CameraImage> ReadImages(const CalibrateOptions& o,
 
 void Run(const CalibrateOptions& o) {
   const calibration::CalibrationSettings settings =
-      calibration::CalibrationSettings::LoadBoard(o.board);
+      host_board::CalibrationSettingsFromBoard(o.board);
   const std::vector<calibration::CameraImage> images = ReadImages(o, settings);
   calibration::CalibrationResult result;
   if (!o.verify.empty()) {

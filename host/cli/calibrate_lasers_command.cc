@@ -12,6 +12,7 @@
 
 #include "common/config/calibration.h"
 #include "common/scan_format/scan_format.h"
+#include "host/board/board_json.h"
 #include "host/calibration/calibrate.h"
 #include "host/calibration/laser_height.h"
 
@@ -161,7 +162,7 @@ void Run(const LasersOptions& o) {
 
   const calibration::CalibrationLimits limits =
       o.board.empty() ? calibration::CalibrationLimits{}
-                      : calibration::CalibrationSettings::LoadBoard(o.board).limits;
+                      : host_board::CalibrationSettingsFromBoard(o.board).limits;
   LaserHeightOptions options;
   if (header.contains("start_steady_ns") && header["start_steady_ns"].is_number_integer())
     options.time_origin_ns = header["start_steady_ns"].get<int64_t>();

@@ -11,8 +11,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "common/config/json_reader.h"
 #include "common/peaks/peaks.h"
+#include "host/board/board_json.h"
 
 namespace mirrorscan::cli {
 
@@ -32,7 +32,7 @@ struct PeaksOptions {
 };
 
 PeakParams LoadParams(const PeaksOptions& o) {
-  PeakParams params = o.board.empty() ? PeakParams() : PeakParamsFromBoard(o.board);
+  PeakParams params = o.board.empty() ? PeakParams() : host_board::PeakParamsFromBoard(o.board);
   if (!o.estimator.empty()) {
     bool found = false;
     std::string names;
@@ -151,12 +151,6 @@ void Run(const PeaksOptions& o) {
 }
 
 }  // namespace
-
-PeakParams PeakParamsFromBoard(const std::string& board_json) {
-  const nlohmann::json board = JsonReader::ParseFile(board_json);
-  const JsonReader root(board, board_json);
-  return root.Has("peaks") ? PeakParams::FromJson(root.Object("peaks")) : PeakParams();
-}
 
 void AddPeaksCommand(CLI::App& app) {
   auto options = std::make_shared<PeaksOptions>();

@@ -25,7 +25,7 @@
 #include "common/peaks/peaks.h"
 #include "common/protocol/sha256.h"
 #include "common/scan_format/scan_format.h"
-#include "host/cli/peaks_command.h"
+#include "host/board/board_json.h"
 
 namespace mirrorscan::cli {
 
@@ -172,7 +172,8 @@ void Scan(const SimOptions& o) {
     }
   }
   const int sheet_step = std::max(1, scene.frames / 12);
-  const PeakParams peak_params = o.board.empty() ? PeakParams() : PeakParamsFromBoard(o.board);
+  const PeakParams peak_params =
+      o.board.empty() ? PeakParams() : host_board::PeakParamsFromBoard(o.board);
   // Frames render out of order on several threads; records are kept by job and written
   // in order once the sweep is done.
   std::vector<FrameRecord> records(o.peaks.empty() ? 0 : total);
