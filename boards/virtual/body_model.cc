@@ -208,7 +208,9 @@ struct BodyField::Impl {
   // undone per segment. The trunk (with the head) blends with each limb, the limbs not with
   // each other: min over limbs of smooth-min(trunk, limb), so the thighs never fill the
   // crotch and an arm never webs to a leg.
-  double Field(const Vector3d& world, unsigned groups) const {
+  // `part`, if given, gets which of trunk (-1, with neck and head) or limb 0..3 (left arm,
+  // right arm, left leg, right leg) is nearest at this point, before blending.
+  double Field(const Vector3d& world, unsigned groups, int* part = nullptr) const {
     const Vector3d body = body_from_world * world;
     const Vector3d upright = unlean * body;
     const Vector3d head_frame = unturn * upright;
@@ -249,6 +251,13 @@ struct BodyField::Impl {
       joined = std::min(joined, SmoothMin(trunk, limb[i], limb_blend[i]));
     }
     if (any_limb) result = std::min(result, joined);
+    if (part) {
+      *part = -1;
+      double nearest = trunk;
+      for (int i = 0; i < 4; ++i) {
+        if (limb[i] < nearest) nearest = limb[i], *part = i;
+      }
+    }
     return std::max(result, -world.z());  // the soles stand on the floor
   }
 
@@ -829,6 +838,12 @@ double BodyField::Evaluate(const Vector3d& point_in_world) const {
   return impl_->Field(point_in_world, kAll);
 }
 
+BodyPart BodyField::PartAt(const Vector3d& point_in_world) const {
+  int part = -1;
+  impl_->Field(point_in_world, kAll, &part);
+  return static_cast<BodyPart>(part + 1);
+}
+
 const char* BodyField::RegionAt(const Vector3d& point_in_world) const {
   const Impl& m = *impl_;
   const Vector3d upright = m.unlean * (m.body_from_world * point_in_world);
@@ -1036,31 +1051,70 @@ BodyLandmarks BodyLandmarks::FromJson(const nlohmann::json& j) {
   return m;
 }
 
+const char* BodyPartName(BodyPart part) {
+  switch (part) {
+    case BodyPart::kTrunk:
+      return "trunk";
+    case BodyPart::kLeftArm:
+      return "left_arm";
+    case BodyPart::kRightArm:
+      return "right_arm";
+    case BodyPart::kLeftLeg:
+      return "left_leg";
+    case BodyPart::kRightLeg:
+      return "right_leg";
+  }
+  return "trunk";
+}
+
 Subject MakeBody(const BodyParams& params, double cell_mm) {
   const BodyField field(params);
   Subject subject;
   subject.type = "body";
   subject.mesh = MeshIsosurface([&field](const Vector3d& x) { return field.Evaluate(x); },
                                 field.Bounds(), cell_mm, 3.0 * cell_mm * 4 * 0.87 + 10.0);
-  subject.triangle_albedo.reserve(subject.mesh.triangles.size());
-  size_t counts[3] = {0, 0, 0};
-  const BodyParams& p = field.params();
-  for (size_t t = 0; t < subject.mesh.triangles.size(); ++t) {
+  // Triangles grouped by part (the metadata's "parts" ranges, for per-region figures),
+  // each with its material's albedo.
+  const size_t n = subject.mesh.triangles.size();
+  std::vector<int> part_of(n), region_of(n);
+  for (size_t t = 0; t < n; ++t) {
     const Eigen::Vector3i& tri = subject.mesh.triangles[t];
     const Vector3d centroid = (subject.mesh.vertices[tri[0]] + subject.mesh.vertices[tri[1]] +
                                subject.mesh.vertices[tri[2]]) /
                               3;
+    part_of[t] = static_cast<int>(field.PartAt(centroid));
     const std::string region = field.RegionAt(centroid);
-    const int r = region == "hair" ? 1 : region == "underwear" ? 2 : 0;
+    region_of[t] = region == "hair" ? 1 : region == "underwear" ? 2 : 0;
+  }
+  std::vector<size_t> order(n);
+  for (size_t t = 0; t < n; ++t) order[t] = t;
+  std::stable_sort(order.begin(), order.end(),
+                   [&part_of](size_t a, size_t b) { return part_of[a] < part_of[b]; });
+  std::vector<Eigen::Vector3i> triangles(n);
+  size_t counts[3] = {0, 0, 0};
+  const BodyParams& p = field.params();
+  subject.triangle_albedo.reserve(n);
+  subject.metadata["parts"] = nlohmann::json::array();
+  for (size_t i = 0; i < n; ++i) {
+    const size_t t = order[i];
+    triangles[i] = subject.mesh.triangles[t];
+    const int r = region_of[t];
     ++counts[r];
     subject.triangle_albedo.push_back(static_cast<float>(r == 1   ? p.hair_albedo
                                                          : r == 2 ? p.underwear_albedo
                                                                   : p.skin_albedo));
+    if (i == 0 || part_of[t] != part_of[order[i - 1]]) {
+      subject.metadata["parts"].push_back(
+          {{"name", BodyPartName(static_cast<BodyPart>(part_of[t]))},
+           {"first_triangle", i},
+           {"triangle_count", 0}});
+    }
+    subject.metadata["parts"].back()["triangle_count"] =
+        subject.metadata["parts"].back()["triangle_count"].get<size_t>() + 1;
   }
+  subject.mesh.triangles = std::move(triangles);
   subject.metadata["type"] = "body";
   subject.metadata["params"] = p.ToJson();
-  subject.metadata["parts"] = {
-      {{"name", "body"}, {"first_triangle", 0}, {"triangle_count", subject.mesh.triangles.size()}}};
   subject.metadata["regions"] = {{"skin_triangles", counts[0]},
                                  {"hair_triangles", counts[1]},
                                  {"underwear_triangles", counts[2]}};

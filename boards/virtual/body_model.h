@@ -85,6 +85,11 @@ struct BodyLandmarks {
   static BodyLandmarks FromJson(const nlohmann::json& json);  // what ToJson wrote
 };
 
+// The skeleton's parts, as the sim subject's metadata names them ("parts": triangle ranges
+// in this order). The trunk carries the neck and head.
+enum class BodyPart { kTrunk, kLeftArm, kRightArm, kLeftLeg, kRightLeg };
+const char* BodyPartName(BodyPart part);
+
 // The body's field: negative inside, positive outside, about a distance in mm near the
 // surface. Built once; Evaluate is thread-safe.
 class BodyField {
@@ -94,6 +99,8 @@ class BodyField {
   BodyField(BodyField&&) noexcept;
 
   double Evaluate(const Eigen::Vector3d& point_in_world) const;
+  // Which part's primitives are nearest the surface at a world point.
+  BodyPart PartAt(const Eigen::Vector3d& point_in_world) const;
   // Which region the surface near a world point belongs to: "skin", "hair", "underwear".
   const char* RegionAt(const Eigen::Vector3d& point_in_world) const;
   Eigen::AlignedBox3d Bounds() const;  // contains the whole surface, world

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -194,6 +195,52 @@ TEST_F(BodyModel, RegionsCarryTheirAlbedo) {
         subject_->mesh.vertices[subject_->mesh.triangles[top][0]].z())
       top = t;
   EXPECT_FLOAT_EQ(subject_->triangle_albedo[top], 0.05f);
+}
+
+// Distance from a point to the segment a-b.
+double ToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+  return (p - (a + t * (b - a))).norm();
+}
+
+TEST_F(BodyModel, PartsAreTheSkeletonsLimbs) {
+  // Each part's triangles lie around its own bones (the skeleton's joints from the
+  // landmarks): an arm's (with its trapezius and deltoid) within 100 mm of its
+  // neck-shoulder-elbow-wrist line or its hand beyond, a leg's below the hip joint and on its
+  // side; together the parts hold every triangle once.
+  const nlohmann::json& parts = subject_->metadata.at("parts");
+  ASSERT_EQ(parts.size(), 5u);
+  const BodyLandmarks marks = BodyLandmarks::FromJson(subject_->metadata.at("landmarks"));
+  size_t next = 0;
+  for (const nlohmann::json& part : parts) {
+    const std::string name = part.at("name");
+    const size_t first = part.at("first_triangle"), count = part.at("triangle_count");
+    EXPECT_EQ(first, next) << name;
+    next = first + count;
+    EXPECT_GT(count, 10000u) << name;
+    const int side = name.rfind("left", 0) == 0 ? 0 : 1;
+    size_t stray = 0;
+    for (size_t t = first; t < first + count; ++t) {
+      const Eigen::Vector3d& p = subject_->mesh.vertices[subject_->mesh.triangles[t][0]];
+      if (name.find("arm") != std::string::npos) {
+        const Eigen::Vector3d hand_end =
+            marks.wrist_joint[side] + 0.6 * (marks.wrist_joint[side] - marks.elbow_joint[side]);
+        const double d =
+            std::min({ToSegment(p, marks.side_neck[side], marks.shoulder_joint[side]),
+                      ToSegment(p, marks.shoulder_joint[side], marks.elbow_joint[side]),
+                      ToSegment(p, marks.elbow_joint[side], marks.wrist_joint[side]),
+                      ToSegment(p, marks.wrist_joint[side], hand_end)});
+        stray += d > 100;
+      } else if (name.find("leg") != std::string::npos) {
+        stray += p.z() > marks.hip_joint[side].z() ||
+                 (side == 0 ? p.x() < marks.crotch.x() : p.x() > marks.crotch.x());
+      } else {  // the trunk: above the crotch
+        stray += p.z() < marks.crotch.z() - 20;
+      }
+    }
+    EXPECT_EQ(stray, 0u) << name;
+  }
+  EXPECT_EQ(next, subject_->mesh.triangles.size());
 }
 
 TEST(BodyParse, BadKeysAreNamed) {

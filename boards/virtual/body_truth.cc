@@ -116,6 +116,11 @@ nlohmann::json Value(double mm, const char* definition) {
 nlohmann::json Withheld(const char* definition, const std::string& why) {
   return {{"value_mm", nullptr}, {"definition", definition}, {"why", why}};
 }
+// Where a girth is taken: the plane's point (inside the loop) and normal, world frame.
+nlohmann::json Section(const Vector3d& point, const Vector3d& normal) {
+  return {{"point", {point.x(), point.y(), point.z()}},
+          {"normal", {normal.x(), normal.y(), normal.z()}}};
+}
 
 }  // namespace
 
@@ -196,6 +201,7 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
       out[key] = Withheld(definition, "the section merges with another body part");
     } else {
       out[key] = Value(TapeLength(*loop, normal), definition);
+      out[key]["section"] = Section(center, normal);
     }
   };
 
@@ -247,22 +253,29 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
     // the malleoli.
     const double z_knee = marks.knee_joint[0].z(), z_ankle = marks.ankle_joint[0].z();
     double calf = 0, ankle = std::numeric_limits<double>::infinity();
+    Vector3d calf_at = marks.knee_joint[0], ankle_at = marks.ankle_joint[0];
     for (double z = z_ankle + 0.3 * (z_knee - z_ankle); z < z_knee - 0.12 * (z_knee - z_ankle);
          z += 2) {
       const Vector3d c = marks.knee_joint[0] + (z - z_knee) / (z_ankle - z_knee) *
                                                    (marks.ankle_joint[0] - marks.knee_joint[0]);
-      if (const auto loop = LoopAround(mesh, c, vertical))
-        calf = std::max(calf, TapeLength(*loop, vertical));
+      if (const auto loop = LoopAround(mesh, c, vertical)) {
+        const double length = TapeLength(*loop, vertical);
+        if (length > calf) calf = length, calf_at = c;
+      }
     }
     for (double z = z_ankle + 0.25 * (z_knee - z_ankle); z > z_ankle + 0.06 * (z_knee - z_ankle);
          z -= 2) {
       const Vector3d c = marks.knee_joint[0] + (z - z_knee) / (z_ankle - z_knee) *
                                                    (marks.ankle_joint[0] - marks.knee_joint[0]);
-      if (const auto loop = LoopAround(mesh, c, vertical))
-        ankle = std::min(ankle, TapeLength(*loop, vertical));
+      if (const auto loop = LoopAround(mesh, c, vertical)) {
+        const double length = TapeLength(*loop, vertical);
+        if (length < ankle) ankle = length, ankle_at = c;
+      }
     }
     out["calf_girth"] = Value(calf, "greatest horizontal girth of the calf");
     out["ankle_girth"] = Value(ankle, "least horizontal girth of the leg above the malleoli");
+    out["calf_girth"]["section"] = Section(calf_at, vertical);
+    out["ankle_girth"]["section"] = Section(ankle_at, vertical);
   }
   {
     const Vector3d axis = (marks.elbow_joint[0] - marks.shoulder_joint[0]).normalized();

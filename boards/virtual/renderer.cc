@@ -244,19 +244,14 @@ SurfaceSample Renderer::TracePixel(int camera, const Eigen::Vector2d& pixel) con
 Renderer::BumpedPath Renderer::BumpedLightPath(int m, const Eigen::Vector3d& point) const {
   const Lasers& lasers = scene_.lasers;
   const Mirror& mirror = scene_.mirrors[m];
-  const Eigen::Vector3d& n = lasers.normal;
-  // The emitter on the slide in the sheet through x.
-  auto emitter_for = [&](const Eigen::Vector3d& x) {
-    return lasers.EmitterAt(
-        (n.dot(x) - n.x() * lasers.emitter_xy.x() - n.y() * lasers.emitter_xy.y()) / n.z());
-  };
   // Start from the point's own sheet; the image moves the emitter by the bend, which moves
-  // the mirror point by half as much: a few rounds settle far below a micrometre.
+  // the mirror point by half as much: a few rounds settle far below a micrometre. (A scene
+  // with a bumped mirror has one emitter; Scene::Parse sees to it.)
   BumpedPath path;
-  path.emitter = emitter_for(point);
+  path.emitter = lasers.EmitterFor(point);
   for (int round = 0; round < 4; ++round) {
     path.image = mirror.ImageOf(point, path.emitter);
-    path.emitter = emitter_for(path.image);
+    path.emitter = lasers.EmitterFor(path.image);
   }
   return path;
 }
@@ -264,46 +259,45 @@ Renderer::BumpedPath Renderer::BumpedLightPath(int m, const Eigen::Vector3d& poi
 std::vector<Renderer::LaserLight> Renderer::LaserLights(const Eigen::Vector3d& point,
                                                         const Eigen::Vector3d& normal) const {
   const Lasers& lasers = scene_.lasers;
-  // The emitter sits on the slide in the laser plane through the point.
   const Eigen::Vector3d& n = lasers.normal;
-  const double emitter_z =
-      (n.dot(point) - n.x() * lasers.emitter_xy.x() - n.y() * lasers.emitter_xy.y()) / n.z();
-  const Eigen::Vector3d emitter = lasers.EmitterAt(emitter_z);
-  double own_sheet = 0.0;  // direct and through flat mirrors
+  double own_sheet = 0.0;  // direct and through flat mirrors, from every emitter
   std::vector<LaserLight> lights;
 
   auto contribution = [&](const Eigen::Vector3d& toward, double length) {
     // A line laser spreads its power along the line: irradiance falls as 1/r.
     return std::max(0.0, normal.dot(toward)) * 1000.0 / length;
   };
-  {
+  for (size_t e = 0; e < lasers.emitters_xy.size(); ++e) {
+    // The emitter sits on the slide in the laser plane through the point.
+    const Eigen::Vector3d emitter = lasers.EmitterFor(point, e);
     const Eigen::Vector3d d = emitter - point;
     const double r = d.norm();
     const Eigen::Vector3d dir = d / r;
     if (normal.dot(dir) > 0 && !tracer_.Occluded({point, dir}, 0.05, r - 0.05)) {
       own_sheet += contribution(dir, r);
     }
-  }
-  for (int m = 0; m < static_cast<int>(scene_.mirrors.size()); ++m) {
-    const Mirror& mirror = scene_.mirrors[m];
-    if (mirror.bump_mm == 0.0) {
+    for (const Mirror& mirror : scene_.mirrors) {
+      if (mirror.bump_mm != 0.0) continue;
       const Eigen::Vector3d virtual_emitter = mirror.plane.ReflectPoint(emitter);
-      const Eigen::Vector3d d = virtual_emitter - point;
-      const double r = d.norm();
-      const Eigen::Vector3d dir = d / r;
-      if (normal.dot(dir) <= 0) continue;
-      const Ray3d to_mirror{point, dir};
+      const Eigen::Vector3d to_image = virtual_emitter - point;
+      const double length = to_image.norm();
+      const Eigen::Vector3d toward = to_image / length;
+      if (normal.dot(toward) <= 0) continue;
+      const Ray3d to_mirror{point, toward};
       const auto t = IntersectRayPlane(to_mirror, mirror.plane, 0.05);
-      if (!t || *t >= r) continue;
+      if (!t || *t >= length) continue;
       const Eigen::Vector3d on_mirror = to_mirror.At(*t);
       if (!mirror.Contains(on_mirror)) continue;
       if (tracer_.Occluded(to_mirror, 0.05, *t - 0.05)) continue;
       const Eigen::Vector3d back = emitter - on_mirror;
       const double back_length = back.norm();
       if (tracer_.Occluded({on_mirror, back / back_length}, 0.05, back_length - 0.05)) continue;
-      own_sheet += mirror.reflectivity * contribution(dir, r);
-      continue;
+      own_sheet += mirror.reflectivity * contribution(toward, length);
     }
+  }
+  for (int m = 0; m < static_cast<int>(scene_.mirrors.size()); ++m) {
+    const Mirror& mirror = scene_.mirrors[m];
+    if (mirror.bump_mm == 0.0) continue;
     // Through the bumped surface: the emitter sends its light towards the point's image,
     // meets the mirror where the law of reflection holds, and the light reaches the point.
     const BumpedPath path = BumpedLightPath(m, point);

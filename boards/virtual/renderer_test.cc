@@ -783,9 +783,11 @@ TEST(RendererTest, MirrorStripeProfileShapeDoesNotDependOnPhase) {
 // directly), tangent to it: in the sheet that crosses the cylinder the part of the
 // margin further out lies in its shadow and the part further in is lit; the sheets above
 // it light the whole margin. Every point is projected with cv::projectPoints, not traced.
-TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
+// With several emitters (`emitters`, the first at (0, -900)) a point is dark only where
+// every emitter's segment to it meets the cylinder.
+void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
   constexpr double kRadius = 60.0, kBottom = 400.0, kTop = 700.0;
-  const Eigen::Vector2d emitter(0.0, -900.0);
+  const Eigen::Vector2d emitter = emitters.front();
   const Eigen::Vector3d right_normal = MirrorNormal(1);
   const Eigen::Vector3d right_along(std::cos(M_PI / 6), -std::sin(M_PI / 6), 0.0);
   // The right panel 6 mm behind its mirror, from the corner line outwards.
@@ -805,17 +807,24 @@ TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
                            {"center_mm", {centre.x(), centre.y()}}}},
                          {"mirrors", {{"reflectivity", 0.0}}},
                          {"sensor", {{"noise", false}}}};
+  json["lasers"]["emitters_mm"] = nlohmann::json::array();
+  for (const Eigen::Vector2d& e : emitters) json["lasers"]["emitters_mm"].push_back({e.x(), e.y()});
   const Renderer renderer(Scene::Parse(json, "shadow.json", "."));
   const double t = 4.0;  // laser 0 at 550 mm crosses the cylinder; lasers 1, 2 pass over it
   const cv::Mat on = ToMat(renderer.RenderFrame(1, t, 3, true));
   const cv::Mat off = ToMat(renderer.RenderFrame(1, t, 3, false));
   const Eigen::Vector3d camera_centre(0, -1800, 1350);  // the lower camera
 
-  // Distance in the sheet from the cylinder's axis to the segment from p to the emitter.
+  // Distance in the sheet from the cylinder's axis to the segment from p to an emitter;
+  // the largest over the emitters (the one that sees p best).
   auto clearance = [&](const Eigen::Vector2d& p) {
-    const Eigen::Vector2d d = emitter - p;
-    const double f = std::clamp((centre - p).dot(d) / d.squaredNorm(), 0.0, 1.0);
-    return (p + f * d - centre).norm();
+    double best = 0;
+    for (const Eigen::Vector2d& e : emitters) {
+      const Eigen::Vector2d d = e - p;
+      const double f = std::clamp((centre - p).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      best = std::max(best, (p + f * d - centre).norm());
+    }
+    return best;
   };
   auto pixel_of = [&](const Eigen::Vector3d& p) -> std::optional<cv::Point> {
     const cv::Point2d px = ProjectInDefaultCamera(1, p);
@@ -857,6 +866,10 @@ TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
         EXPECT_TRUE(dark_around(*px)) << "panel at " << along << " mm, laser " << laser;
       } else {
         ++counted["panel lit"];
+        const Eigen::Vector2d d = emitter - p.head<2>();
+        const double f = std::clamp((centre - p.head<2>()).dot(d) / d.squaredNorm(), 0.0, 1.0);
+        if (z < kTop && (p.head<2>() + f * d - centre).norm() < kRadius - 3.0)
+          ++counted["panel lit by another emitter"];
         EXPECT_TRUE(lit_at(*px)) << "panel at " << along << " mm, laser " << laser;
       }
     }
@@ -877,9 +890,17 @@ TEST(RendererTest, PointHiddenFromTheLaserStaysDark) {
     EXPECT_TRUE(lit_at(*px)) << "cylinder at " << angle << "°";
   }
   for (const auto& [what, n] : counted) std::printf("%s: %d points\n", what.c_str(), n);
-  EXPECT_GT(counted["panel hidden"], 30);
+  if (emitters.size() == 1) EXPECT_GT(counted["panel hidden"], 30);
+  EXPECT_EQ(counted["panel lit by another emitter"] > 10, emitters.size() > 1);
   EXPECT_GT(counted["panel lit"], 200);
   EXPECT_GT(counted["cylinder lit"], 100);
+}
+
+TEST(RendererTest, PointHiddenFromTheLaserStaysDark) { CheckShadowsOfACylinder({{0.0, -900.0}}); }
+
+// A second emitter on the slide (the same sheets) lights part of the first one's shadow.
+TEST(RendererTest, ASecondEmitterLightsPartOfTheFirstOnesShadow) {
+  CheckShadowsOfACylinder({{0.0, -900.0}, {600.0, -700.0}});
 }
 
 TEST(RendererTest, SameSeedSameFrameOtherFrameOtherNoise) {

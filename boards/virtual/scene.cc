@@ -240,7 +240,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
 
   const JsonReader lr(json.contains("lasers") ? json["lasers"] : empty, file_name, "lasers");
   lr.AllowOnly({"count", "spacing_mm", "start_mm", "speed_mm_s", "sheet_sigma_mm", "tilt_deg",
-                "emitter_mm", "power"});
+                "emitter_mm", "emitters_mm", "power"});
   Lasers& lasers = scene.lasers;
   lasers.count = lr.Integer("count", 3, 1, 3);
   lasers.spacing_mm = lr.Number("spacing_mm", 200.0, 20.0, 2000.0);
@@ -253,8 +253,30 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
       (Eigen::AngleAxisd(tilt[0] * kDeg, Eigen::Vector3d::UnitX()) *
        Eigen::AngleAxisd(tilt[1] * kDeg, Eigen::Vector3d::UnitY()) * Eigen::Vector3d::UnitZ())
           .normalized();
-  const auto emitter = lr.Numbers("emitter_mm", 2, std::vector<double>{0.0, -900.0});
-  lasers.emitter_xy = {emitter[0], emitter[1]};
+  if (lr.Has("emitter_mm") && lr.Has("emitters_mm")) {
+    lr.Fail("emitters_mm", "give emitter_mm (one emitter) or emitters_mm (a list), not both");
+  }
+  if (lr.Has("emitters_mm")) {
+    const nlohmann::json& list = json["lasers"]["emitters_mm"];
+    if (!list.is_array() || list.empty() || list.size() > 8) {
+      lr.Fail("emitters_mm", "expected a list of 1 to 8 [x, y] positions");
+    }
+    lasers.emitters_xy.clear();
+    for (const nlohmann::json& xy : list) {
+      if (!xy.is_array() || xy.size() != 2 || !xy[0].is_number() || !xy[1].is_number()) {
+        lr.Fail("emitters_mm", "each emitter is [x, y] in mm");
+      }
+      lasers.emitters_xy.emplace_back(xy[0].get<double>(), xy[1].get<double>());
+    }
+  } else {
+    const auto emitter = lr.Numbers("emitter_mm", 2, std::vector<double>{0.0, -900.0});
+    lasers.emitters_xy = {{emitter[0], emitter[1]}};
+  }
+  for (const Mirror& m : scene.mirrors) {
+    if (m.bump_mm != 0.0 && lasers.emitters_xy.size() > 1) {
+      lr.Fail("emitters_mm", "a bumped mirror's light is modelled from one emitter only");
+    }
+  }
   lasers.power = lr.Number("power", 1.0, 0.0, 100.0);
 
   const JsonReader sr(json.contains("sensor") ? json["sensor"] : empty, file_name, "sensor");

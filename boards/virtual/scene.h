@@ -78,16 +78,21 @@ struct Lasers {
   double speed_mm_s = 150.0;
   double sheet_sigma_mm = 1.0;
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // tilted slightly when tilt is set
-  Eigen::Vector2d emitter_xy{0.0, -900.0};
+  // Where the slide carries each line laser of a level (x, y): all of a level's emitters
+  // send the same sheet (coplanar, from different sides), so they light more of the
+  // subject without adding planes to tell apart.
+  std::vector<Eigen::Vector2d> emitters_xy{{0.0, -900.0}};
   double power = 1.0;  // relative; the sensor maps it to DN
 
   double HeightAt(int laser, double t) const {
     return start_mm + speed_mm_s * t + laser * spacing_mm;
   }
   Plane PlaneAt(int laser, double t) const { return Plane{normal, -HeightAt(laser, t)}; }
-  // Emitter position in the plane of `laser` at time t, on the slide's axis.
-  Eigen::Vector3d EmitterAt(double height) const {
-    return {emitter_xy.x(), emitter_xy.y(), height};
+  // Emitter `e` on the slide, in the sheet through `point`.
+  Eigen::Vector3d EmitterFor(const Eigen::Vector3d& point, size_t e = 0) const {
+    const Eigen::Vector2d& xy = emitters_xy[e];
+    return {xy.x(), xy.y(),
+            (normal.dot(point) - normal.x() * xy.x() - normal.y() * xy.y()) / normal.z()};
   }
 };
 
