@@ -303,7 +303,7 @@ def unseen_picture(samples, seen, png, scale=0.25):
     """Front and back views of the true surface side by side (a 2 m body 500 px tall), seen
     parts shaded grey by slope, unseen parts red."""
     points, normals, _ = samples
-    width, height = int(1400 * scale), int(2100 * scale)
+    width, height = int(1700 * scale), int(2150 * scale)
     panels = []
     for back in (False, True):
         u = -points[:, 0] if back else points[:, 0]  # the camera's right is +x
@@ -311,7 +311,7 @@ def unseen_picture(samples, seen, png, scale=0.25):
         facing = normals[:, 1] if back else -normals[:, 1]
         image = np.full((height, width, 3), 255, np.uint8)
         px = np.round(u * scale + width / 2).astype(int)
-        py = np.round((2080 - points[:, 2]) * scale).astype(int)
+        py = np.round((2120 - points[:, 2]) * scale).astype(int)
         ok = (px >= 0) & (px < width) & (py >= 0) & (py < height) & (facing > 0)
         order = np.argsort(depth[ok])  # depth is nearness: far first, the near drawn last
         shade = (60 + 180 * np.clip(facing[ok], 0, 1))[order]
