@@ -5,11 +5,24 @@ cloud (`mirrorscan process`), and the sim's truth peaks (`sim scan --truth`).
 
 Used by scripts/coverage (one body) and scripts/population-figures (all of them).
 """
+import importlib.machinery
+import importlib.util
 import json
 import os
 
 import numpy as np
 import open3d as o3d
+
+
+def _load_score():
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "score-reconstruction")
+    loader = importlib.machinery.SourceFileLoader("score_reconstruction", path)
+    module = importlib.util.module_from_spec(importlib.util.spec_from_loader(loader.name, loader))
+    loader.exec_module(module)
+    return module
+
+
+SCORE = _load_score()  # the archive reader and truth matching of scripts/score-reconstruction
 
 # Regions of the body, in the order the tables list them (docs/virtual-cabinet.md,
 # "Coverage by region", says how each is bounded).
@@ -239,13 +252,14 @@ def resample(polyline, step=1.0):
     return np.vstack(out)
 
 
-def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, truth_csvs=(), detect_dn=None):
+def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archive=None):
     """The body's coverage figures: overall and per region (the share of the true surface,
     soles excluded, within 5 mm of the processed mesh), per girth section (the share of its
     perimeter within 5 mm), the cloud's points more than 5 mm off the surface, and, given
-    the sim's truth peaks, the share the cabinet's optics reach (within 5 mm of a peak the
-    sensor can detect: peak_dn >= detect_dn). Returns (figures, samples, seen) with the
-    samples (points, normals) and each one's seen flag, for pictures."""
+    the sim's truth peaks (sim_dir, a `sim scan --truth` output) and the archive, the share the
+    cabinet's optics and the extractor reach (within 5 mm of a truth peak the extractor
+    found). Returns (figures, samples, seen, optics) with the samples (points, normals,
+    region) and each one's seen flags (processed, optics), for pictures."""
     truth = o3d.io.read_triangle_mesh(subject_ply)
     v, t = np.asarray(truth.vertices), np.asarray(truth.triangles)
     points, tri, normals = surface_samples(truth)
@@ -253,6 +267,7 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, truth_csvs=(), detec
     region = classify(meta, points, part)
     out = {"samples": int(len(points))}
     seen = np.zeros(len(points), bool)
+    optics = np.zeros(len(points), bool)
     mesh_distance = None
     if mesh_ply and os.path.exists(mesh_ply):
         mesh = o3d.io.read_triangle_mesh(mesh_ply)
@@ -274,21 +289,22 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, truth_csvs=(), detec
                 continue
             along = resample(loop)
             out["sections"][key] = round(100 * float(np.mean(mesh_distance(along) < SEEN_MM)), 1)
-    if truth_csvs:
-        peaks = []
-        for f in truth_csvs:
-            data = np.genfromtxt(f, delimiter=",", names=True, dtype=None, encoding=None)
-            keep = data["material"] == "subject" if data["material"].dtype.kind in "US" else np.ones(len(data), bool)
-            if detect_dn is not None:
-                keep &= data["peak_dn"] >= detect_dn
-            peaks.append(np.stack([data["x_mm"][keep], data["y_mm"][keep], data["z_mm"][keep]], axis=1))
-        peaks = np.vstack(peaks)
-        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(peaks))
+    if sim_dir:
+        # What the optics and the extractor reach: truth peaks on the subject with a peak of
+        # the archive within 1 px of their row (scripts/score-reconstruction's matching).
+        with open(os.path.join(sim_dir, "sweep.json")) as f:
+            cameras = json.load(f)["cameras"]
+        truth_peaks = SCORE.read_truth(sim_dir, cameras)
+        truth_peaks = truth_peaks[truth_peaks[:, 9] == 1]
+        found = SCORE.read_mscan_peaks(archive)
+        near = SCORE.nearest_in_column(
+            SCORE.column_key(truth_peaks[:, 0], truth_peaks[:, 1], truth_peaks[:, 2]), truth_peaks[:, 3],
+            SCORE.column_key(found[:, 0], found[:, 1], found[:, 2]), found[:, 3], 1.0)
+        lit = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(truth_peaks[near >= 0, 6:9]))
         query = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-        lit = np.asarray(query.compute_point_cloud_distance(cloud)) < SEEN_MM
-        out["optics_pct"] = round(100 * float(lit.mean()), 1)
-        out["optics_seen"] = lit
-        out["optics_regions"] = {name: round(100 * float(lit[region == i].mean()), 1)
+        optics = np.asarray(query.compute_point_cloud_distance(lit)) < SEEN_MM
+        out["optics_pct"] = round(100 * float(optics.mean()), 1)
+        out["optics_regions"] = {name: round(100 * float(optics[region == i].mean()), 1)
                                  if (region == i).any() else None for i, name in enumerate(REGIONS)}
     if cloud_ply and os.path.exists(cloud_ply):
         cloud_points = read_cloud_xyz(cloud_ply)
@@ -296,7 +312,7 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, truth_csvs=(), detec
         d = Distance(truth)(cloud_points)
         out["points_beyond_5mm"] = int(np.sum(d > 5))
         out["points_beyond_20mm"] = int(np.sum(d > 20))
-    return out, (points, normals, region), seen
+    return out, (points, normals, region), seen, optics
 
 
 def unseen_picture(samples, seen, png, scale=0.25):

@@ -243,6 +243,17 @@ TEST_F(BodyModel, PartsAreTheSkeletonsLimbs) {
   EXPECT_EQ(next, subject_->mesh.triangles.size());
 }
 
+// Arms hanging against the body: the upper arm's section holds the trunk too, so the
+// truth withholds that girth rather than give the tape around both (1,093 mm for a
+// 312 mm arm before it did). Meshed at 8 mm: only the sections' topology matters here.
+TEST(BodyTruth, AnArmAgainstTheBodyHasNoUpperArmGirth) {
+  BodyParams p;
+  p.arm_abduction_deg = 6;
+  const Subject body = MakeBody(p, 8.0);
+  const nlohmann::json& upper_arm = body.metadata.at("truth").at("upper_arm_girth");
+  EXPECT_TRUE(upper_arm.at("value_mm").is_null()) << upper_arm.dump();
+}
+
 TEST(BodyParse, BadKeysAreNamed) {
   const nlohmann::json scene = {{"type", "body"}, {"stature_mm", 900}};
   try {

@@ -281,9 +281,13 @@ nlohmann::json BodyMeasurementTruth(const TriangleMesh& mesh, const BodyLandmark
     const Vector3d axis = (marks.elbow_joint[0] - marks.shoulder_joint[0]).normalized();
     const double t = 0.5 * ((marks.acromion[0] - marks.shoulder_joint[0]).dot(axis) +
                             (marks.elbow[0] - marks.shoulder_joint[0]).dot(axis));
+    // Withheld when the arm's section holds the trunk's axis too (arms against the body):
+    // the trunk's centre at that height, moved into the section's plane.
+    const Vector3d center = marks.shoulder_joint[0] + t * axis;
+    const Vector3d trunk = at_height((marks.world_from_upright.inverse() * center).z());
     girth("upper_arm_girth",
           "girth of the upper arm perpendicular to its axis, midway between acromion and olecranon",
-          marks.shoulder_joint[0] + t * axis, axis);
+          center, axis, Vector3d(trunk - (trunk - center).dot(axis) * axis));
     const Vector3d fore = (marks.wrist_joint[0] - marks.elbow_joint[0]).normalized();
     girth("wrist_girth", "girth of the wrist over the ulnar styloid, perpendicular to the forearm",
           marks.wrist_joint[0], fore);
