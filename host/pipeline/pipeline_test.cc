@@ -114,6 +114,27 @@ TEST_F(PipelineTest, WritesEveryFileInOrderAndTheSummary) {
   EXPECT_TRUE(result_->uploaded.empty());
 }
 
+// The pose check runs on the cloud: the mannequin's legs stand 13 mm apart, closer than the
+// posture's feet at hip width, which the check cannot see apart.
+TEST_F(PipelineTest, TheSummarySaysHowThePersonStood) {
+  const nlohmann::json& pose = result_->summary.at("pose");
+  EXPECT_TRUE(pose.at("checked").get<bool>()) << pose.dump();
+  EXPECT_EQ(pose.at("within_protocol").get<bool>(), result_->pose.within_protocol);
+  EXPECT_FALSE(result_->pose.within_protocol) << pose.dump();
+  EXPECT_EQ(pose.at("advice"), nlohmann::json(result_->pose.advice));
+  EXPECT_NE(pose.at("advice").dump().find("Step onto the footprints"), std::string::npos)
+      << pose.dump();
+  EXPECT_NEAR(pose.at("yaw_deg").get<double>(), 0.0, 3.0) << pose.dump();
+  // The true calibration's mirrors end at the scene's mirror top.
+  const virtual_cabinet::Scene scene =
+      virtual_cabinet::Scene::Load(test_support::VirtualScene("mannequin"));
+  double mirror_top = 0;
+  for (const auto& mirror : scene.mirrors)
+    for (const Eigen::Vector3d& corner : mirror.Corners())
+      mirror_top = std::max(mirror_top, corner.z());
+  EXPECT_NEAR(pose.at("reach_mm").get<double>(), mirror_top, 1.0) << pose.dump();
+}
+
 TEST_F(PipelineTest, ReportsEachStageInOrder) {
   std::vector<std::string> stages;
   for (const auto& [stage, fraction] : *progress_) {
@@ -122,7 +143,7 @@ TEST_F(PipelineTest, ReportsEachStageInOrder) {
     if (stages.empty() || stages.back() != stage) stages.push_back(stage);
   }
   const std::vector<std::string> expected = {
-      "reading the archive", "reconstruction", "Poisson surface",
+      "reading the archive", "reconstruction", "pose check",  "Poisson surface",
       "writing the mesh",    "previews",       "measurements"};
   EXPECT_EQ(stages, expected);
 }
