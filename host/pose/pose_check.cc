@@ -814,7 +814,8 @@ nlohmann::json ToJson(const PoseReport& r, const PoseOptions& options) {
                         {"yaw_max_deg", t.yaw_max_deg},
                         {"lean_max_deg", t.lean_max_deg},
                         {"head_turn_max_deg", t.head_turn_max_deg},
-                        {"feet_to_hip_spread", {t.feet_min_ratio, t.feet_max_ratio}}};
+                        {"feet_to_hip_spread", {t.feet_min_ratio, t.feet_max_ratio}},
+                        {"reach_margin_mm", t.reach_margin_mm}};
   return json;
 }
 

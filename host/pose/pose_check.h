@@ -44,7 +44,9 @@ struct PoseTolerances {
   double head_turn_max_deg = 15.0;  // |head turn| from the body's front
   double feet_min_ratio = 0.85;     // feet spread / the legs' spread at the hips
   double feet_max_ratio = 1.6;
-  double reach_margin_mm = 0.0;  // the head's top may come this close to the reach
+  // The top of the head may rise this far above the reach: no camera sees the crown anyway
+  // (it is extrapolated), and the estimate of it is good to about 20 mm.
+  double reach_margin_mm = 20.0;
 };
 
 struct PoseOptions {
