@@ -68,7 +68,12 @@ const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'web_browser_test.'));
 fs.mkdirSync(ARTIFACTS, { recursive: true });
 const downloads = path.join(dir, 'downloads');
 fs.mkdirSync(downloads);
-board.virtual.scene = path.join(SOURCE, 'boards/virtual/scenes/mannequin.json');
+// The mannequin turned 25° to its left (counter-clockwise seen from above): a scan the pose
+// check flags, so the page shows its advice.
+board.virtual.scene = path.join(dir, 'mannequin-turned.json');
+fs.writeFileSync(board.virtual.scene, JSON.stringify({
+  subject: { type: 'mannequin', yaw_deg: 25 }, frames: 300, seed: 1,
+}));
 fs.writeFileSync(path.join(dir, 'board.json'), JSON.stringify(board, null, 2));
 const port = await freePort();
 const host = `127.0.0.1:${port}`;
@@ -226,8 +231,8 @@ async function main() {
     list.map((tr) => [...tr.children].map((td) => td.textContent)));
   check(rows.length >= 5 && rows.every(([, value, note]) => / cm$/.test(value) || note.length > 0),
     `the measurements show (${rows.length} rows, ${rows.filter((r) => / cm$/.test(r[1])).length} with a value; ${measured.slice(0, 3).join(' | ')})`);
-  // The pose check: the mannequin's legs stand 13 mm apart (feet together), so the page
-  // flags the scan and shows what to say, as summary.json has it.
+  // The pose check: the mannequin stands turned 25° to its left, so the page flags the
+  // scan and shows what to say, as summary.json has it.
   const summary = JSON.parse(fs.readFileSync(path.join(dir, 'result', 'summary.json'), 'utf8'));
   await page.waitForFunction(() => !document.getElementById('pose').hidden, { timeout: 30000 });
   const shownPose = await page.evaluate(() => ({
@@ -240,7 +245,7 @@ async function main() {
     `the mannequin's scan is off the posture (${JSON.stringify(summary.pose && summary.pose.advice)})`);
   check(/off the standard scanning posture/.test(shownPose.verdict), `the page says so (${shownPose.verdict})`);
   check(JSON.stringify(shownPose.advice) === JSON.stringify(summary.pose.advice) &&
-      shownPose.advice.some((a) => /Step onto the footprints/.test(a)),
+      shownPose.advice.some((a) => /Turn about 25° to your right to face the camera/.test(a)),
     `the page shows the advice (${shownPose.advice.join(' | ')})`);
   check(shownPose.figures.length === 7 &&
       JSON.stringify(shownPose.off) === JSON.stringify(summary.pose.off_protocol.filter((k) => shownPose.figures.includes(k))),
