@@ -176,14 +176,13 @@ std::vector<Blob> Blobs(const std::vector<Eigen::Vector2d>& points) {
   return blobs;
 }
 
-// The circle through a group's points (algebraic least squares, refitted twice without the
-// points off it by more than 3 robust deviations and 4 mm): its centre stays on a limb's
-// axis when only an arc of the limb is seen, and a stray stripe joined to it drops out.
+// The circle through a group's points (algebraic least squares): its centre stays on a
+// limb's axis when only an arc of the limb is seen.
 struct Circle {
   Eigen::Vector2d centre = Eigen::Vector2d::Zero();
   double radius = 0.0;
 };
-std::optional<Circle> FitCircleOnce(const std::vector<Eigen::Vector2d>& points) {
+std::optional<Circle> FitCircle(const std::vector<Eigen::Vector2d>& points) {
   if (points.size() < 6) return std::nullopt;
   Eigen::Vector2d mean = Eigen::Vector2d::Zero();
   for (const Eigen::Vector2d& p : points) mean += p;
@@ -206,20 +205,49 @@ std::optional<Circle> FitCircleOnce(const std::vector<Eigen::Vector2d>& points) 
   circle.centre += mean;
   return circle;
 }
-std::optional<Circle> FitCircle(const std::vector<Eigen::Vector2d>& points) {
-  std::optional<Circle> circle = FitCircleOnce(points);
-  for (int pass = 0; pass < 2 && circle; ++pass) {
-    std::vector<double> off(points.size());
-    for (size_t i = 0; i < points.size(); ++i)
-      off[i] = std::abs((points[i] - circle->centre).norm() - circle->radius);
-    const double limit = std::max(4.0, 3.0 * 1.4826 * Median(off));
+
+// A leg's circle when a stray stripe may cling to its outline (a wrong view's, a few cm
+// off): of 64 circles through three of its points (a fixed pseudo-random choice), the one
+// the most points lie within 5 mm of, refitted on those points. A leg's section is round
+// to a few mm, so its outline outvotes a stripe; the plain fit would average them.
+std::optional<Circle> FitLegCircle(const std::vector<Eigen::Vector2d>& points) {
+  constexpr double kBand = 5.0;
+  const size_t n = points.size();
+  if (n < 12) return FitCircle(points);
+  uint64_t state = 0x9e3779b97f4a7c15ull ^ n;
+  auto pick = [&] {
+    state = state * 6364136223846793005ull + 1442695040888963407ull;
+    return static_cast<size_t>((state >> 33) % n);
+  };
+  auto near = [&](const Circle& c) {
     std::vector<Eigen::Vector2d> on;
-    for (size_t i = 0; i < points.size(); ++i)
-      if (off[i] <= limit) on.push_back(points[i]);
-    if (on.size() == points.size()) break;
-    circle = FitCircleOnce(on);
+    for (const Eigen::Vector2d& p : points)
+      if (std::abs((p - c.centre).norm() - c.radius) < kBand) on.push_back(p);
+    return on;
+  };
+  std::optional<Circle> best;
+  size_t best_count = 0;
+  for (int trial = 0; trial < 64; ++trial) {
+    const Eigen::Vector2d a = points[pick()], b = points[pick()], c = points[pick()];
+    // The circle through a, b, c: its centre o solves 2 (b - a) . o = |b|^2 - |a|^2, and c's.
+    Eigen::Matrix2d m;
+    m << 2 * (b - a).transpose(), 2 * (c - a).transpose();
+    if (std::abs(m.determinant()) < 1e-6) continue;
+    const Eigen::Vector2d o = m.inverse() * Eigen::Vector2d(b.squaredNorm() - a.squaredNorm(),
+                                                            c.squaredNorm() - a.squaredNorm());
+    const Circle candidate{o, (a - o).norm()};
+    size_t count = 0;
+    for (const Eigen::Vector2d& p : points)
+      count += std::abs((p - candidate.centre).norm() - candidate.radius) < kBand;
+    if (count > best_count) {
+      best_count = count;
+      best = candidate;
+    }
   }
-  return circle;
+  if (!best || best_count < n / 2) return FitCircle(points);
+  std::optional<Circle> refit = FitCircle(near(*best));
+  if (refit) refit = FitCircle(near(*refit));
+  return refit ? refit : FitCircle(points);
 }
 
 // The long axis of the ellipse through a group's points (general conic, least squares):
@@ -314,7 +342,7 @@ std::optional<std::pair<Circle, Circle>> TwoLegs(const std::vector<Blob>& blobs,
       blobs[1].points.size() < 0.3 * blobs[0].points.size()) {
     return std::nullopt;
   }
-  const auto a = FitCircle(blobs[0].points), b = FitCircle(blobs[1].points);
+  const auto a = FitLegCircle(blobs[0].points), b = FitLegCircle(blobs[1].points);
   if (!a || !b) return std::nullopt;
   const double max_radius = 0.12 * stature;
   if (a->radius > max_radius || b->radius > max_radius) return std::nullopt;

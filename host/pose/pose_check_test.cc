@@ -69,23 +69,33 @@ ScannedBody Scan(nlohmann::json subject) {
   return body;
 }
 
-// Millimetre noise on every point, 0.5 % stray points in the scan volume, a stray stripe
-// (a wrong laser's) beside the left shin: what a reconstruction leaves.
+// What a reconstruction leaves: millimetre noise on every point, 0.5 % stray points in the
+// scan volume, a stripe given a wrong laser (the head's ring one laser spacing, 200 mm,
+// too high) and a wrong view's stripe beside the left shin, 25-30 mm outside it.
 std::vector<Eigen::Vector3d> Roughened(const ScannedBody& body) {
   std::mt19937 random(11);
   std::normal_distribution<double> noise(0.0, 0.8);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<Eigen::Vector3d> cloud;
-  for (const Eigen::Vector3d& p : body.cloud)
+  const double vertex = body.landmarks.vertex.z();
+  for (const Eigen::Vector3d& p : body.cloud) {
     cloud.push_back(p + Eigen::Vector3d(noise(random), noise(random), noise(random)));
+    if (p.z() > vertex - 80.0 && p.z() < vertex - 70.0)
+      cloud.push_back(p + Eigen::Vector3d(0, 0, 200));
+  }
   const size_t strays = body.cloud.size() / 200;
   for (size_t i = 0; i < strays; ++i) {
     const double angle = 2 * kPi * unit(random), radius = 600.0 * std::sqrt(unit(random));
     cloud.emplace_back(radius * std::cos(angle), radius * std::sin(angle), 2000.0 * unit(random));
   }
-  const Eigen::Vector3d shin = body.landmarks.ankle_joint[0] + Eigen::Vector3d(-30, -70, 150);
-  for (int i = 0; i < 300; ++i)
-    cloud.push_back(shin + Eigen::Vector3d(0.3 * i, 0.0, 2.0 * std::sin(0.1 * i)));
+  const Eigen::Vector3d ankle = body.landmarks.ankle_joint[0], knee = body.landmarks.knee_joint[0];
+  for (double z = 100.0; z <= 300.0; z += 5.0) {  // as dense as the surface's samples
+    const Eigen::Vector3d axis = ankle + (knee - ankle) * (z - ankle.z()) / (knee.z() - ankle.z());
+    for (double deg = -30.0; deg <= 30.0; deg += 4.0) {  // 70 mm out, on the outer side
+      const double a = deg * kPi / 180.0;
+      cloud.push_back(axis + Eigen::Vector3d(70.0 * std::cos(a), 70.0 * std::sin(a), 0.0));
+    }
+  }
   return cloud;
 }
 
