@@ -399,11 +399,9 @@ std::optional<Eigen::Vector2d> FitLine(const std::vector<Eigen::Vector2d>& zv) {
   return fit(kept);
 }
 
-// The trunk's group in a body-frame section: the largest that spans the body's axis.
+// The trunk's group in a section between the wrists and the armpits: the largest.
 const Blob* TrunkOf(const std::vector<Blob>& blobs) {
-  for (const Blob& b : blobs)
-    if (b.min.y() < 0.0 && b.max.y() > 0.0 && b.points.size() >= 20) return &b;
-  return nullptr;
+  return !blobs.empty() && blobs.front().points.size() >= 20 ? &blobs.front() : nullptr;
 }
 
 // The group nearest the body's axis with enough points (the neck, the head).
