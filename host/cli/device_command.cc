@@ -527,7 +527,9 @@ void AddDeviceCommands(CLI::App& app) {
                   "process ... --upload`, in this process)");
   watch->add_option("--calibration", options->calibration_file, "calibration.json for --process")
       ->check(CLI::ExistingFile);
-  watch->add_option("--board", options->board, "board.json for --process (bounding cylinder)")
+  watch
+      ->add_option("--board", options->board,
+                   "board.json for --process (bounding cylinder, the pose check's reach)")
       ->check(CLI::ExistingFile);
   watch->add_option("--count", options->count, "exit after this many scans ended (0: never)")
       ->check(CLI::NonNegativeNumber)

@@ -434,6 +434,7 @@ class Checker {
     report_.checked = true;
     report_.head_top_seen_mm = sections_.top();
     stature_ = sections_.top();
+    HeadTop();
     HeadCut();
     Legs();
     if (!legs_found_) TrunkYaw();
@@ -442,7 +443,6 @@ class Checker {
     Arms();
     Lean();
     HeadTurn();
-    HeadTop();
     Judge();
     return std::move(report_);
   }
@@ -463,11 +463,17 @@ class Checker {
   }
 
   // A head above the cabinet's reach is cut off where the scan ends: the stations then come
-  // from the crotch, the highest height at which the legs are seen apart.
+  // from the crotch, the highest height at which the legs are seen apart. The head is cut
+  // when the cloud ends within 15 mm of the reach, unless its cap closes below the reach and
+  // its margin.
   void HeadCut() {
     const std::optional<double> reach = options_.reach.top_mm();
-    head_cut_ = reach && sections_.top() >= *reach - 15.0;
+    const std::optional<double> cap = report_.head_top_mm.value;
+    head_cut_ = reach && sections_.top() >= *reach - 15.0 &&
+                !(cap && *cap <= *reach + options_.tolerances.reach_margin_mm);
     if (!head_cut_) return;
+    report_.head_top_mm.value.reset();
+    report_.head_top_mm.note = "the head reaches above the cabinet's reach";
     // The top of the run of sections with two legs that starts below the knees (a miss or
     // three on the way allowed; two arms higher up are not legs).
     double crotch = 0.0;
@@ -615,7 +621,7 @@ class Checker {
       return;
     }
     std::vector<double> turns;
-    // From 40 mm below the highest point down to the chin.
+    // From 40 mm below the highest point down to just above the chin.
     for (double z = sections_.top() - 40.0; z >= kHeadFrom * stature_; z -= 5.0) {
       const std::vector<Blob> blobs = Blobs(sections_.At(z, 2.5));
       const Blob* head = NearestAxis(blobs, 30);
@@ -632,23 +638,19 @@ class Checker {
   }
 
   // The top of the head is seen from no camera: the cap below it is fitted and extrapolated
-  // (host/measurement's head cap).
+  // (host/measurement's head cap). Before the body's frame is known: the head's axis is the
+  // largest group's centre 60 mm below the highest point, the fit finds the head's yaw.
   void HeadTop() {
-    if (head_cut_) {
-      report_.head_top_mm.note = "the head reaches above the cabinet's reach";
-      return;
-    }
     const double top = sections_.top();
     const std::vector<Blob> blobs = Blobs(sections_.At(top - 60.0, 10.0));
-    const Blob* head = NearestAxis(blobs, 30);
-    const Eigen::Vector2d axis = head ? sections_.ToWorld(head->mean) : report_.centre_mm;
+    if (blobs.empty()) return;
+    const Eigen::Vector2d axis = blobs.front().mean;
     std::vector<Eigen::Vector3d> cap;
     for (auto it = sections_.points().rbegin(); it != sections_.points().rend(); ++it) {
       if (it->z() < top - 50.0) break;
       if ((it->head<2>() - axis).norm() <= 150.0) cap.push_back(*it);
     }
-    const auto fit =
-        measurement::FitHeadCap(cap, Eigen::Vector2d(std::cos(yaw_rad_), std::sin(yaw_rad_)));
+    const auto fit = measurement::FitHeadCap(cap, Eigen::Vector2d::UnitX());
     if (!fit || fit->rms_mm > 3.0 || fit->top.z() < top - 1.0 || fit->top.z() > top + 80.0) {
       report_.head_top_mm.note = "the cap below the top of the head fits no head";
       return;
@@ -748,7 +750,7 @@ class Checker {
 nlohmann::json FigureJson(const PoseFigure& figure, int decimals) {
   if (!figure.value) return nullptr;
   const double scale = std::pow(10.0, decimals);
-  return std::round(*figure.value * scale) / scale;
+  return std::round(*figure.value * scale) / scale + 0.0;  // + 0.0: no "-0.0"
 }
 
 }  // namespace
