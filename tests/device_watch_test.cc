@@ -105,6 +105,15 @@ TEST_F(DeviceWatchTest, APushbuttonScanComesBackProcessedAndTheUploadNeedsTheTok
   const json summary = json::parse(ReadFile(results / "summary.json"));
   EXPECT_TRUE(summary.at("ok").get<bool>()) << summary.dump();
   EXPECT_EQ(summary.at("scan_id"), id);
+  // The pose check's verdict is in the report and its advice printed as soon as processed.
+  ASSERT_TRUE(summary.contains("pose")) << summary.dump();
+  EXPECT_EQ(report.at("pose"), summary.at("pose"));
+  const std::string said = "watch: scan " + id + " pose: ";
+  EXPECT_NE(watch.Log().find(said), std::string::npos) << watch.Log();
+  for (const auto& advice : summary.at("pose").at("advice")) {
+    EXPECT_NE(watch.Log().find(said + "say: " + advice.get<std::string>()), std::string::npos)
+        << watch.Log();
+  }
 
   // On the device: every result the folder has, byte for byte, and the scan names them.
   const json scan = json::parse(Run("device list --json").out)[0];

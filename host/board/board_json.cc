@@ -86,6 +86,23 @@ calibration::CalibrationSettings CalibrationSettingsFromBoard(
   return ParseCalibrationSettings(JsonReader::ParseFile(board_json), board_json.string());
 }
 
+BoardReach ReachFromBoard(const std::filesystem::path& board_json) {
+  const nlohmann::json board = JsonReader::ParseFile(board_json);
+  const JsonReader root(board, board_json.string());
+  BoardReach reach;
+  if (root.Has("scan") && root.Object("scan").Has("sweep_end_mm")) {
+    reach.sweep_end_mm = root.Object("scan").Number("sweep_end_mm", std::nullopt, -1e5, 1e5);
+  }
+  if (root.Has("calibration")) {
+    const JsonReader c = root.Object("calibration");
+    if (c.Has("mirror_height_mm") && c.Has("mirror_bottom_mm")) {
+      reach.mirror_top_mm = c.Number("mirror_bottom_mm", std::nullopt, -1e4, 1e4) +
+                            c.Number("mirror_height_mm", std::nullopt, 10.0, 1e4);
+    }
+  }
+  return reach;
+}
+
 PeakParams PeakParamsFromBoard(const std::filesystem::path& board_json) {
   const nlohmann::json board = JsonReader::ParseFile(board_json);
   const JsonReader root(board, board_json.string());

@@ -5,6 +5,7 @@
 // calibrates and reconstructs: the ARM build has no use for them, and common/ cannot name
 // the host's types.
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -28,6 +29,16 @@ calibration::CalibrationSettings CalibrationSettingsFromBoard(
 // The same from a parsed board.json; `file` names it in errors.
 calibration::CalibrationSettings ParseCalibrationSettings(const nlohmann::json& board,
                                                           const std::string& file);
+
+// How high the cabinet scans, as board.json states it: "scan" sweep_end_mm (the slide's
+// readback at the sweep's end) and the mirrors' top ("calibration" mirror_bottom_mm +
+// mirror_height_mm); each empty where the board does not say. The pose check's reach
+// (host/pose) takes the calibration's own mirror corners first.
+struct BoardReach {
+  std::optional<double> sweep_end_mm;
+  std::optional<double> mirror_top_mm;
+};
+BoardReach ReachFromBoard(const std::filesystem::path& board_json);
 
 // The extractor's parameters from board.json's "peaks" (PeakParams::FromJson); defaults
 // when it has none.

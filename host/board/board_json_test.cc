@@ -83,6 +83,25 @@ TEST(BoardJson, PeakParamsFromBoard) {
   std::filesystem::remove(path);
 }
 
+TEST(BoardJson, ReachFromBoard) {
+  const std::string source = MIRRORSCAN_SOURCE_DIR;
+  const nlohmann::json shipped = JsonReader::ParseFile(source + "/boards/virtual/board.json");
+  const BoardReach virtual_board = ReachFromBoard(source + "/boards/virtual/board.json");
+  ASSERT_TRUE(virtual_board.sweep_end_mm && virtual_board.mirror_top_mm);
+  EXPECT_EQ(*virtual_board.sweep_end_mm, shipped["scan"]["sweep_end_mm"].get<double>());
+  EXPECT_EQ(*virtual_board.mirror_top_mm,
+            shipped["calibration"]["mirror_bottom_mm"].get<double>() +
+                shipped["calibration"]["mirror_height_mm"].get<double>());
+  const auto path = std::filesystem::temp_directory_path() / "host_board_reach.json";
+  std::ofstream(path) << R"({"board": "x", "calibration": {"mirror_height_mm": 1500}})";
+  const BoardReach silent = ReachFromBoard(path);
+  EXPECT_FALSE(silent.sweep_end_mm);
+  EXPECT_FALSE(silent.mirror_top_mm) << "no default stands in for a mirror the board omits";
+  std::ofstream(path) << R"({"scan": {"sweep_end_mm": "high"}})";
+  EXPECT_THROW(ReachFromBoard(path), ConfigError);
+  std::filesystem::remove(path);
+}
+
 // Every shipped board carries the cabinet's cylinder: it holds the A-pose mannequin whole,
 // hands (619 mm out) and head, and its core, where one hypothesis decides a peak alone,
 // holds the torso above the hands and stays in front of both mirrors.

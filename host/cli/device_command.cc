@@ -20,6 +20,7 @@
 #include "common/protocol/protocol.h"
 #include "host/cli/device_discovery.h"
 #include "host/cli/exit_status.h"
+#include "host/cli/pose_command.h"
 #include "host/cli/process_command.h"
 #include "host/client/device_client.h"
 
@@ -290,16 +291,21 @@ int ProcessScan(const DeviceOptions& o, const fs::path& archive, const fs::path&
   pipeline::ProcessOptions options;
   options.upload = o.host;
   options.token = o.token;
+  int status = 0;
   try {
     RunProcess(archive, o.calibration_file, o.board, out, options);
-    return 0;
   } catch (const CommandExit& e) {
     (*report)["process_error"] = e.what();
-    return e.status();
+    status = e.status();
   } catch (const std::exception& e) {
     (*report)["process_error"] = e.what();
-    return kExitFailure;
+    status = kExitFailure;
   }
+  // The pose check's verdict from summary.json: a run that fails after it has one too.
+  std::ifstream in(out / "summary.json");
+  const json summary = json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (summary.is_object() && summary.contains("pose")) (*report)["pose"] = summary["pose"];
+  return status;
 }
 
 // One finished scan: fetched (retried while the device still finishes it), then processed
@@ -370,6 +376,12 @@ void Watch(const DeviceOptions& o) {
                        : (", process exit " + report["process_exit"].dump() + ": " +
                           report.value("process_error", std::string()))
                              .c_str());
+    }
+    // The pose check's advice at once, for the shop assistant beside the cabinet.
+    if (report.contains("pose")) {
+      for (const std::string& line : PoseLines(report["pose"])) {
+        std::fprintf(stderr, "watch: scan %s pose: %s\n", p.scan_id.c_str(), line.c_str());
+      }
     }
     if (o.json) {
       std::cout << report.dump() << std::endl;
@@ -515,7 +527,9 @@ void AddDeviceCommands(CLI::App& app) {
                   "process ... --upload`, in this process)");
   watch->add_option("--calibration", options->calibration_file, "calibration.json for --process")
       ->check(CLI::ExistingFile);
-  watch->add_option("--board", options->board, "board.json for --process (bounding cylinder)")
+  watch
+      ->add_option("--board", options->board,
+                   "board.json for --process (bounding cylinder, the pose check's reach)")
       ->check(CLI::ExistingFile);
   watch->add_option("--count", options->count, "exit after this many scans ended (0: never)")
       ->check(CLI::NonNegativeNumber)

@@ -13,6 +13,7 @@
 #include "host/cli/measure_command.h"
 #include "host/cli/mesh_command.h"
 #include "host/cli/peaks_command.h"
+#include "host/cli/pose_command.h"
 #include "host/cli/process_command.h"
 #include "host/cli/reconstruct_command.h"
 #include "host/cli/sim_command.h"
@@ -60,6 +61,7 @@ int main(int argc, char** argv) {
   mirrorscan::cli::AddMeasureCommand(app);
   mirrorscan::cli::AddMeshCommand(app);
   mirrorscan::cli::AddProcessCommand(app);
+  mirrorscan::cli::AddPoseCommand(app);
   if (const auto unknown = UnknownCommand(app, argc, argv)) {
     std::fprintf(stderr, "mirrorscan: %s\n", unknown->c_str());
     return mirrorscan::cli::kExitUsage;

@@ -88,7 +88,8 @@ void AddProcessCommand(CLI::App& app) {
   cmd->add_option("--formats", options->formats,
                   "mesh formats, comma-separated: ply, obj, stl (ply always)")
       ->capture_default_str();
-  cmd->add_option("--board", options->board, "board.json (the bounding cylinder)");
+  cmd->add_option("--board", options->board,
+                  "board.json (the bounding cylinder; the sweep's end for the pose check)");
   cmd->add_flag("--calibration-mismatch-ok", options->process.calibration_mismatch_ok,
                 "process an archive recorded with another calibration (a warning)");
   cmd->add_flag("--no-previews", options->no_previews, "write no preview PNGs");

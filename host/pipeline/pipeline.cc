@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <fstream>
+#include <optional>
 #include <system_error>
 #include <tuple>
 #include <utility>
@@ -21,6 +22,7 @@
 #include "host/measurement/preview.h"
 #include "host/meshing/preview.h"
 #include "host/pipeline/upload.h"
+#include "host/pose/pose_check.h"
 #include "host/reconstruction/reconstruct.h"
 
 namespace mirrorscan::pipeline {
@@ -170,6 +172,7 @@ class Job {
   void Run() {
     ReadInputs();
     Reconstruct();
+    Pose();
     Mesh();
     Stage("writing the mesh");
     for (const fs::path& file : WriteMeshFormats(result_.mesh, out_ / "mesh.ply", formats_)) {
@@ -286,6 +289,27 @@ class Job {
                           " peaks in the archive)");
     }
     CheckViews(reconstructed);
+  }
+
+  // How the person stood, from the cloud, against the standard posture: in the summary
+  // even when a later stage fails, since a bad stance is often why.
+  void Pose() {
+    Stage("pose check");
+    pose::PoseOptions options;
+    std::optional<double> sweep_end, board_mirror_top;
+    if (!board_path_.empty()) {
+      try {
+        const host_board::BoardReach board = host_board::ReachFromBoard(board_path_);
+        sweep_end = board.sweep_end_mm;
+        board_mirror_top = board.mirror_top_mm;
+      } catch (const ConfigError& e) {
+        throw InputError(e.what());
+      }
+    }
+    options.reach = pose::ReachOf(calibration_, sweep_end, board_mirror_top);
+    result_.pose = pose::CheckPose(cloud_, options);
+    summary_["pose"] = pose::ToJson(result_.pose, options);
+    Time("pose");
   }
 
   void Mesh() {

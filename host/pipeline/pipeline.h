@@ -1,10 +1,10 @@
 #pragma once
 // The host's processing of one scan (docs/meshing.md, "the batch job"): an archive and a
-// calibration in, a folder out. Reconstruction (host/reconstruction) -> points.ply ->
-// Poisson mesh (host/meshing) -> mesh.ply (.obj, .stl) -> previews -> measurements
-// (host/measurement) -> summary.json; optionally the results put back on the device the
-// scan came from. `mirrorscan process`, `mirrorscan device watch --process` and the tests
-// call Process in-process.
+// calibration in, a folder out. Reconstruction (host/reconstruction) -> points.ply -> pose
+// check (host/pose, summary.json's "pose") -> Poisson mesh (host/meshing) -> mesh.ply (.obj, .stl)
+// -> previews -> measurements (host/measurement) -> summary.json; optionally the results put back
+// on the device the scan came from. `mirrorscan process`, `mirrorscan device watch --process` and
+// the tests call Process in-process.
 #include <filesystem>
 #include <functional>
 #include <stdexcept>
@@ -16,6 +16,7 @@
 #include "common/mesh/triangle_mesh.h"
 #include "host/measurement/measure.h"
 #include "host/meshing/meshing.h"
+#include "host/pose/pose_check.h"
 
 namespace mirrorscan::pipeline {
 
@@ -73,6 +74,7 @@ struct ProcessResult {
   std::vector<std::string> uploaded;           // the results put on the device, in order
   TriangleMesh mesh;                           // mesh.ply's
   measurement::BodyMeasurements measurements;  // measurements.json's
+  pose::PoseReport pose;                       // summary.json's "pose"
 };
 
 // Processes `archive` with `calibration` (and `board`'s bounding cylinder unless empty)

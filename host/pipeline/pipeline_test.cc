@@ -114,6 +114,55 @@ TEST_F(PipelineTest, WritesEveryFileInOrderAndTheSummary) {
   EXPECT_TRUE(result_->uploaded.empty());
 }
 
+// The pose check runs on the cloud: the mannequin stands as the posture asks (arms at
+// 32 degrees, legs straight down from its hips, facing the camera), its truth from its
+// metadata and mesh.
+TEST_F(PipelineTest, TheSummarySaysHowThePersonStood) {
+  const nlohmann::json& pose = result_->summary.at("pose");
+  EXPECT_EQ(pose.at("within_protocol").get<bool>(), result_->pose.within_protocol);
+  EXPECT_EQ(pose.at("advice"), nlohmann::json(result_->pose.advice));
+  ASSERT_TRUE(pose.at("checked").get<bool>()) << pose.dump();
+  EXPECT_TRUE(pose.at("within_protocol").get<bool>()) << pose.dump();
+  EXPECT_TRUE(pose.at("advice").empty()) << pose.dump();
+  const virtual_cabinet::Scene scene =
+      virtual_cabinet::Scene::Load(test_support::VirtualScene("mannequin"));
+  const nlohmann::json& meta = scene.subject.metadata;
+  EXPECT_NEAR(pose.at("yaw_deg").get<double>(), meta.at("params").at("yaw_deg").get<double>(), 3.0);
+  for (const char* side : {"left", "right"}) {
+    EXPECT_NEAR(pose.at("arm_abduction_deg").at(side).get<double>(),
+                meta.at("arm_angle_deg").get<double>(), 5.0)
+        << side;
+  }
+  // The legs' axes (upright tubes), from their triangles in the subject's mesh.
+  std::vector<Eigen::Vector3d> legs;
+  for (const nlohmann::json& part : meta.at("parts")) {
+    const std::string name = part.at("name");
+    if (name != "left_leg" && name != "right_leg") continue;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int count = 0;
+    const size_t first = part.at("first_triangle"),
+                 end = first + part.at("triangle_count").get<size_t>();
+    for (size_t t = first; t < end; ++t) {
+      for (int corner = 0; corner < 3; ++corner) {
+        const Eigen::Vector3d v =
+            scene.subject.mesh.vertices[scene.subject.mesh.triangles[t][corner]];
+        sum += v;
+        ++count;
+      }
+    }
+    ASSERT_GT(count, 0) << name;
+    legs.push_back(sum / count);
+  }
+  ASSERT_EQ(legs.size(), 2u);
+  EXPECT_NEAR(pose.at("feet_spread_mm").get<double>(), (legs[0] - legs[1]).head<2>().norm(), 10.0);
+  // The true calibration's mirrors end at the scene's mirror top.
+  double mirror_top = 0;
+  for (const auto& mirror : scene.mirrors)
+    for (const Eigen::Vector3d& corner : mirror.Corners())
+      mirror_top = std::max(mirror_top, corner.z());
+  EXPECT_NEAR(pose.at("reach_mm").get<double>(), mirror_top, 1.0) << pose.dump();
+}
+
 TEST_F(PipelineTest, ReportsEachStageInOrder) {
   std::vector<std::string> stages;
   for (const auto& [stage, fraction] : *progress_) {
@@ -122,7 +171,7 @@ TEST_F(PipelineTest, ReportsEachStageInOrder) {
     if (stages.empty() || stages.back() != stage) stages.push_back(stage);
   }
   const std::vector<std::string> expected = {
-      "reading the archive", "reconstruction", "Poisson surface",
+      "reading the archive", "reconstruction", "pose check",  "Poisson surface",
       "writing the mesh",    "previews",       "measurements"};
   EXPECT_EQ(stages, expected);
 }

@@ -1,9 +1,10 @@
 // The device's web page in a real browser (Debian's chromium driven by puppeteer-core;
 // nothing downloads a browser) against mirrorscand on the virtual board on loopback:
-// a wrong token is refused; log in; start a scan and see the progress reach 100 %; see
-// the scan listed; download it byte-identical to the stored archive; the live preview;
-// after `mirrorscan process --upload` the previews, the measurements and a non-blank 3D
-// view; delete it. Screenshots go to MIRRORSCAN_ARTIFACTS (look at them).
+// the posture drawing before a scan; a wrong token is refused; log in; start a scan and
+// see the progress reach 100 %; see the scan listed; download it byte-identical to the
+// stored archive; the live preview; after `mirrorscan process --upload` the pose check's
+// advice, the previews, the measurements and a non-blank 3D view; delete it. Screenshots
+// go to MIRRORSCAN_ARTIFACTS (look at them).
 //
 // Run by ctest (tests/CMakeLists.txt sets the environment): node browser_test.mjs
 import { spawn, spawnSync } from 'node:child_process';
@@ -67,7 +68,12 @@ const dir = fs.mkdtempSync(path.join(os.tmpdir(), 'web_browser_test.'));
 fs.mkdirSync(ARTIFACTS, { recursive: true });
 const downloads = path.join(dir, 'downloads');
 fs.mkdirSync(downloads);
-board.virtual.scene = path.join(SOURCE, 'boards/virtual/scenes/mannequin.json');
+// The mannequin turned 25° to its left (counter-clockwise seen from above): a scan the pose
+// check flags, so the page shows its advice.
+board.virtual.scene = path.join(dir, 'mannequin-turned.json');
+fs.writeFileSync(board.virtual.scene, JSON.stringify({
+  subject: { type: 'mannequin', yaw_deg: 25 }, frames: 300, seed: 1,
+}));
 fs.writeFileSync(path.join(dir, 'board.json'), JSON.stringify(board, null, 2));
 const port = await freePort();
 const host = `127.0.0.1:${port}`;
@@ -108,6 +114,35 @@ async function main() {
   await page.waitForFunction(() => document.getElementById('state').textContent === 'idle');
   check(true, 'the page shows the device idle');
   check(await page.$eval('#board', (e) => e.textContent) === 'board virtual', 'the page names the board');
+
+  // Before any scan: the standard posture as a drawing (docs/scanning-posture.md).
+  const drawing = await page.$eval('#posture-drawing', (svg) => {
+    const box = svg.getBoundingClientRect();
+    const armAngles = [...svg.querySelectorAll('line.arm')].map((l) => {
+      const dx = l.x2.baseVal.value - l.x1.baseVal.value;
+      const dy = l.y2.baseVal.value - l.y1.baseVal.value;
+      return Math.atan2(Math.abs(dx), dy) * 180 / Math.PI;  // from hanging straight down
+    });
+    const feet = [...svg.querySelectorAll('ellipse.footprint')].map((e) => e.cx.baseVal.value);
+    const legs = [...svg.querySelectorAll('line.leg')].map((l) => l.x2.baseVal.value);
+    const level = svg.querySelector('line.head-level');
+    return {
+      width: box.width, height: box.height, armAngles, feet, legs,
+      fists: svg.querySelectorAll('circle.fist').length,
+      headLevel: level && level.y1.baseVal.value === level.y2.baseVal.value,
+      steps: [...document.querySelectorAll('#posture-steps li')].map((li) => li.textContent),
+    };
+  });
+  check(drawing.width >= 200 && drawing.height >= 250, `the posture drawing shows (${drawing.width.toFixed(0)} x ${drawing.height.toFixed(0)} px)`);
+  check(drawing.armAngles.length === 2 && drawing.armAngles.every((a) => a >= 20 && a <= 30),
+    `it draws both arms 20-30° from the body (${drawing.armAngles.map((a) => a.toFixed(1)).join(', ')}°)`);
+  check(drawing.feet.length === 2 && drawing.legs.length === 2 &&
+      drawing.legs.every((x) => drawing.feet.some((f) => Math.abs(f - x) < 3)),
+    `it draws two footprints apart, a foot on each (${drawing.feet.join(', ')})`);
+  check(drawing.fists === 2 && drawing.headLevel, 'it draws fists and the head level');
+  check(drawing.steps.length === 5 && /footprints/.test(drawing.steps[0]) && /20–30°/.test(drawing.steps[1]),
+    `the instruction's five steps are listed (${drawing.steps.length})`);
+  await (await page.$('#posture')).screenshot({ path: path.join(ARTIFACTS, '0-posture.png') });
 
   // A wrong token is refused.
   await page.type('#token', 'not-the-device-token-not-the-device-token');
@@ -196,6 +231,26 @@ async function main() {
     list.map((tr) => [...tr.children].map((td) => td.textContent)));
   check(rows.length >= 5 && rows.every(([, value, note]) => / cm$/.test(value) || note.length > 0),
     `the measurements show (${rows.length} rows, ${rows.filter((r) => / cm$/.test(r[1])).length} with a value; ${measured.slice(0, 3).join(' | ')})`);
+  // The pose check: the mannequin stands turned 25° to its left, so the page flags the
+  // scan and shows what to say, as summary.json has it.
+  const summary = JSON.parse(fs.readFileSync(path.join(dir, 'result', 'summary.json'), 'utf8'));
+  await page.waitForFunction(() => !document.getElementById('pose').hidden, { timeout: 30000 });
+  const shownPose = await page.evaluate(() => ({
+    verdict: document.getElementById('pose-verdict').textContent,
+    advice: [...document.querySelectorAll('#pose-advice li')].map((li) => li.textContent),
+    figures: [...document.querySelectorAll('#pose-figures tr')].map((tr) => tr.dataset.figure),
+    off: [...document.querySelectorAll('#pose-figures tr.pose-off')].map((tr) => tr.dataset.figure),
+  }));
+  check(summary.pose && summary.pose.within_protocol === false && summary.pose.advice.length > 0,
+    `the mannequin's scan is off the posture (${JSON.stringify(summary.pose && summary.pose.advice)})`);
+  check(/off the standard scanning posture/.test(shownPose.verdict), `the page says so (${shownPose.verdict})`);
+  check(JSON.stringify(shownPose.advice) === JSON.stringify(summary.pose.advice) &&
+      shownPose.advice.some((a) => /Turn about 25° to your right to face the camera/.test(a)),
+    `the page shows the advice (${shownPose.advice.join(' | ')})`);
+  check(shownPose.figures.length === 7 &&
+      JSON.stringify(shownPose.off) === JSON.stringify(summary.pose.off_protocol.filter((k) => shownPose.figures.includes(k))),
+    `the figures show, the off ones marked (${shownPose.off.join(', ')})`);
+  await (await page.$('#pose')).screenshot({ path: path.join(ARTIFACTS, '4-pose.png') });
   await page.waitForFunction(() => Number(document.getElementById('viewer').dataset.triangles) > 1000,
     { timeout: 60000 });
   // Non-blank: the drawn mesh covers a good part of the canvas in colours far from the

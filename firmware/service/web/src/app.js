@@ -1,7 +1,8 @@
-// mirrorscand's page: device state, a scan button, live progress from the event stream,
-// a live camera preview, the scans with download and delete, and a processed scan's
-// previews, measurements and 3D mesh. Every call but /status sends the device token in
-// an Authorization header (never in a URL); it is kept in this tab's sessionStorage only.
+// mirrorscand's page: device state, a scan button, the posture to stand in (a drawing in
+// index.html), live progress from the event stream, a live camera preview, the scans with
+// download and delete, and a processed scan's pose check, previews, measurements and 3D
+// mesh. Every call but /status sends the device token in an Authorization header (never in
+// a URL); it is kept in this tab's sessionStorage only.
 import { showMesh } from './viewer.js';
 
 const API = '/api/v1';
@@ -268,6 +269,51 @@ function formatMm(value) {
   return value === null || value === undefined ? '—' : `${(value / 10).toFixed(1)} cm`;
 }
 
+// summary.json's "pose" (docs/pose-check.md): the verdict, what to say for a rescan, and
+// the figures.
+function showPose(pose) {
+  $('pose').hidden = !pose;
+  $('pose-advice').innerHTML = '';
+  $('pose-figures').querySelector('tbody').innerHTML = '';
+  if (!pose) return;
+  const within = pose.within_protocol;
+  $('pose-verdict').textContent = within
+    ? 'Posture: within the standard scanning posture.'
+    : pose.checked ? 'Posture: off the standard scanning posture. For a rescan, say:'
+      : `Posture not checked: ${pose.reason}`;
+  $('pose-verdict').className = within ? 'pose-ok' : 'pose-off';
+  for (const sentence of pose.advice || []) {
+    const li = document.createElement('li');
+    li.textContent = sentence;
+    $('pose-advice').appendChild(li);
+  }
+  if (!pose.checked) return;
+  const off = new Set(pose.off_protocol || []);
+  const deg = (v) => (v === null || v === undefined ? 'not measured' : `${v.toFixed(1)}°`);
+  const mm = (v) => (v === null || v === undefined ? 'not measured' : `${v.toFixed(0)} mm`);
+  const arms = pose.arm_abduction_deg || {};
+  const rows = [
+    ['feet apart', mm(pose.feet_spread_mm), 'feet_spread_mm', `legs ${mm(pose.hip_spread_mm)} apart at the hips`],
+    ['left arm from the body', deg(arms.left), 'arm_abduction_left', 'the person\'s left'],
+    ['right arm from the body', deg(arms.right), 'arm_abduction_right', ''],
+    ['turned from the camera', deg(pose.yaw_deg), 'yaw_deg', '+ to their left'],
+    ['lean', deg(pose.lean_deg), 'lean_deg', '+ forward'],
+    ['head turn', deg(pose.head_turn_deg), 'head_turn_deg', '+ to their left'],
+    ['top of the head', mm(pose.head_top_mm), 'head_top_mm',
+      pose.reach_mm ? `the cabinet scans up to ${mm(pose.reach_mm)}` : ''],
+  ];
+  const body = $('pose-figures').querySelector('tbody');
+  for (const [name, value, key, note] of rows) {
+    const row = document.createElement('tr');
+    row.dataset.figure = key;
+    if (off.has(key)) row.className = 'pose-off';
+    cell(row, name);
+    cell(row, value);
+    cell(row, (pose.notes && pose.notes[key]) || note);
+    body.appendChild(row);
+  }
+}
+
 async function showResult(id) {
   selected = id;
   for (const row of $('scan-rows').children) row.className = row.dataset.id === id ? 'selected' : '';
@@ -276,6 +322,7 @@ async function showResult(id) {
   $('previews').innerHTML = '';
   $('measurements').querySelector('tbody').innerHTML = '';
   $('result-summary').textContent = 'loading…';
+  showPose(null);
   releaseBlobs();
   let results;
   try {
@@ -291,6 +338,7 @@ async function showResult(id) {
       ? `${summary.reconstruction ? summary.reconstruction.points : '?'} points, mesh of ${mesh.triangles} triangles, ` +
         `${mesh.holes ? mesh.holes.count : '?'} hole(s); processed in ${summary.timings_s.total.toFixed(0)} s`
       : `processing failed: ${summary.reason}`;
+    showPose(summary.pose || null);
   } else {
     $('result-summary').textContent = 'processing…';
   }
