@@ -44,9 +44,9 @@ struct BodyParams {
   double elbow_bend_deg = 0.0;      // forearm forward from the upper arm's line
   double feet_apart_mm = 0.0;       // ankle centres' distance; 0: hip width (legs clear)
   double yaw_deg = 0.0;             // the whole body about +z, counter-clockwise from above
-  double lean_deg = 0.0;            // forward (+) or back about the ankles
-  double head_turn_deg = 0.0;       // to the body's left (+) about the neck
-  std::string hands = "fist";       // "fist" or "open"
+  double lean_deg = 0.0;       // back (+, away from the camera) or forward (-) about the ankles
+  double head_turn_deg = 0.0;  // to the body's left (+) about the neck
+  std::string hands = "fist";  // "fist" or "open"
   Eigen::Vector2d center_mm{0.0, 0.0};
 
   // Materials: albedo at the lasers' red wavelength (docs/virtual-cabinet.md).
