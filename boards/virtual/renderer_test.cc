@@ -890,7 +890,9 @@ void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
     EXPECT_TRUE(lit_at(*px)) << "cylinder at " << angle << "°";
   }
   for (const auto& [what, n] : counted) std::printf("%s: %d points\n", what.c_str(), n);
-  if (emitters.size() == 1) EXPECT_GT(counted["panel hidden"], 30);
+  if (emitters.size() == 1) {
+    EXPECT_GT(counted["panel hidden"], 30);
+  }
   EXPECT_EQ(counted["panel lit by another emitter"] > 10, emitters.size() > 1);
   EXPECT_GT(counted["panel lit"], 200);
   EXPECT_GT(counted["cylinder lit"], 100);
