@@ -71,6 +71,25 @@ TEST(SceneTest, BadValuesGiveOneErrorNamingTheKey) {
   EXPECT_NE(ErrorOf(R"({"target": {"yaw_deg": "x"}})").find("target.yaw_deg"), std::string::npos);
 }
 
+TEST(SceneTest, EmittersAreAListOfPositionsOnTheSlide) {
+  const Scene scene = Scene::Parse(
+      nlohmann::json{{"lasers", {{"emitters_mm", {{0, -900}, {-600, -600}}}}}}, "scene.json", ".");
+  ASSERT_EQ(scene.lasers.emitters_xy.size(), 2u);
+  EXPECT_EQ(scene.lasers.emitters_xy[1], Eigen::Vector2d(-600, -600));
+  EXPECT_EQ(ErrorOf(R"({"lasers": {"emitter_mm": [0, -900], "emitters_mm": [[0, -900]]}})"),
+            "scene.json: lasers.emitters_mm: give emitter_mm (one emitter) or emitters_mm (a "
+            "list), not both");
+  EXPECT_EQ(ErrorOf(R"({"lasers": {"emitters_mm": []}})"),
+            "scene.json: lasers.emitters_mm: expected a list of 1 to 8 [x, y] positions");
+  EXPECT_EQ(ErrorOf(R"({"lasers": {"emitters_mm": [[0, -900, 5]]}})"),
+            "scene.json: lasers.emitters_mm: each emitter is [x, y] in mm");
+  EXPECT_EQ(
+      ErrorOf(
+          R"({"mirrors": {"left_bump_mm": 1}, "lasers": {"emitters_mm": [[0, -900], [600, -600]]}})"),
+      "scene.json: lasers.emitters_mm: a bumped mirror's light is modelled from one emitter "
+      "only");
+}
+
 TEST(SceneTest, ShippedScenesLoad) {
   for (const char* name : {"mannequin", "cuboid", "cylinder", "calibration"}) {
     const Scene scene = Scene::Load(std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes/" +
