@@ -57,8 +57,10 @@ TEST(CliTest, SimScanWritesACompletePeakArchive) {
   std::printf(
       "stored peaks vs truth: %zu of %zu found, RMS %.4f px, max %.3f px, %zu of %zu false\n",
       match.found, match.truth, match.RmsPx(), match.max_px, match.false_peaks, match.peaks);
-  // Measured: 1123 of 1123 found, RMS 0.024 px, 2 false peaks of 1125.
-  EXPECT_GT(match.truth, 1000u);
+  // Measured: 921 of 921 found, RMS 0.044 px, 16 false peaks of 937 (in the mannequin's
+  // cabinet 1123 of 1123, 0.024 px, 2 of 1125; the white floor-to-ceiling stripes saturate
+  // under three emitters at twice the power).
+  EXPECT_GT(match.truth, 800u);
   EXPECT_GT(match.Recall(), 0.97);
   EXPECT_LT(match.RmsPx(), 0.1);
   EXPECT_LT(match.false_peaks, 0.02 * match.peaks);

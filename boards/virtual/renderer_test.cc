@@ -77,7 +77,7 @@ double BoxDistance(const Scene& scene, const Eigen::Vector3d& p) {
 // truth is checked against the scene's numbers and OpenCV's projection, not against the
 // renderer's own planes, reflections and camera model (which made the truth).
 constexpr double kLaserStartMm = -50.0, kLaserSpeedMmS = 150.0, kLaserSpacingMm = 200.0;
-constexpr double kMirrorCornerYMm = 600.0, kMirrorAngleDeg = 120.0;
+constexpr double kMirrorCornerYMm = 900.0, kMirrorAngleDeg = 120.0;
 
 double LaserHeightMm(int laser, double t) {
   return kLaserStartMm + kLaserSpeedMmS * t + laser * kLaserSpacingMm;
@@ -107,7 +107,7 @@ Eigen::Vector3d MirrorImage(View view, Eigen::Vector3d p) {
   return p;
 }
 
-// A default camera (f 1400 px, centred principal point, the default distortion) looking
+// A default camera (f 1150 px, centred principal point, the default distortion) looking
 // from `position` at `look_at` with world z up, projected by cv::projectPoints.
 cv::Point2d ProjectWithOpenCv(const Eigen::Vector3d& position, const Eigen::Vector3d& look_at,
                               const Eigen::Vector3d& point) {
@@ -124,7 +124,7 @@ cv::Point2d ProjectWithOpenCv(const Eigen::Vector3d& position, const Eigen::Vect
   cv::Rodrigues(rotation, rvec);
   const cv::Vec3d p(position.x(), position.y(), position.z());
   const cv::Vec3d tvec = -(rotation * p);
-  const cv::Matx33d k(1400, 0, 511.5, 0, 1400, 383.5, 0, 0, 1);
+  const cv::Matx33d k(1150, 0, 511.5, 0, 1150, 383.5, 0, 0, 1);
   const std::vector<double> distortion = {-0.08, 0.05, 3e-4, -2e-4, 0.0};
   std::vector<cv::Point2d> pixels;
   cv::projectPoints(std::vector<cv::Point3d>{{point.x(), point.y(), point.z()}}, rvec, tvec, k,
@@ -134,7 +134,7 @@ cv::Point2d ProjectWithOpenCv(const Eigen::Vector3d& position, const Eigen::Vect
 
 // The default cameras: upper (0) and lower (1).
 cv::Point2d ProjectInDefaultCamera(int camera, const Eigen::Vector3d& point) {
-  return camera == 0 ? ProjectWithOpenCv({0, -1800, 2150}, {0, 300, 1350}, point)
+  return camera == 0 ? ProjectWithOpenCv({0, -1800, 2400}, {0, 300, 1550}, point)
                      : ProjectWithOpenCv({0, -1800, 1350}, {0, 300, 450}, point);
 }
 
@@ -311,11 +311,11 @@ std::optional<std::array<Eigen::Vector2d, 4>> CornerDisplacements(
 }
 
 // The right mirror's bumped surface, from the scene file's numbers
-// (docs/virtual-cabinet.md): 620 x 1700 mm from z = 100 at the corner line, displaced
+// (docs/virtual-cabinet.md): 1000 x 2100 mm from the floor at the corner line, displaced
 // along its normal by bump (1 - a²)(1 - b²), a, b in [-1, 1] across width and height.
 struct BumpedRightMirror {
   double bump_mm;
-  static constexpr double kWidth = 620.0, kHeight = 1700.0, kBottom = 100.0;
+  static constexpr double kWidth = 1000.0, kHeight = 2100.0, kBottom = 0.0;
   Eigen::Vector3d corner{0.0, kMirrorCornerYMm, kBottom};
   Eigen::Vector3d normal = MirrorNormal(1);
   Eigen::Vector3d along = Eigen::Vector3d::UnitZ().cross(MirrorNormal(1));  // outwards, +x
@@ -372,6 +372,7 @@ double SegmentDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& x,
 TEST(RendererTest, LightThroughABumpedMirrorFollowsItsSurface) {
   Scene scene = Scene::Load(ScenePath("cylinder"));
   scene.lasers.count = 1;
+  scene.lasers.emitters_xy = {{0.0, -900.0}};  // a bumped mirror's light from one emitter
   scene.sensor.noise = false;
   const double bump_mm = 3.0;
   scene.mirrors[1].bump_mm = bump_mm;
@@ -519,7 +520,9 @@ TEST(RendererTest, MarkerCornersRenderWhereProjectionPredicts) {
       double sum2 = 0;
       for (double x : e) sum2 += x * x;
       const double rms = std::sqrt(sum2 / e.size());
-      EXPECT_LT(*std::max_element(e.begin(), e.end()), 0.05)
+      // 0.05 px when the mirrors' markers were 10 % larger in the image (f 1400 px, the
+      // mirrors 300 mm nearer); the edge fit's own error grows as they shrink.
+      EXPECT_LT(*std::max_element(e.begin(), e.end()), 0.06)
           << "camera " << camera << " view " << ViewName(view);
       std::printf("camera %d view %-6s: %zu corners, RMS %.4f px, max %.4f px\n", camera,
                   ViewName(view), e.size(), rms, *std::max_element(e.begin(), e.end()));
@@ -794,7 +797,7 @@ void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
   auto on_panel = [&](double along, double z) -> Eigen::Vector3d {
     return Eigen::Vector3d(0, kMirrorCornerYMm, z) - 6.0 * right_normal + along * right_along;
   };
-  const Eigen::Vector2d margin_middle = on_panel(680.0, 0.0).head<2>();
+  const Eigen::Vector2d margin_middle = on_panel(1040.0, 0.0).head<2>();
   const Eigen::Vector2d toward = (margin_middle - emitter).normalized();
   const Eigen::Vector2d outwards(toward.y(), -toward.x());  // towards larger `along`
   const Eigen::Vector2d centre = emitter + 650.0 * toward + kRadius * outwards;
@@ -848,7 +851,7 @@ void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
   std::map<std::string, int> counted;
   for (int laser = 0; laser < 3; ++laser) {
     const double z = LaserHeightMm(laser, t);
-    for (double along = 635.0; along <= 735.0; along += 1.0) {
+    for (double along = 1005.0; along <= 1075.0; along += 0.5) {
       const Eigen::Vector3d p = on_panel(along, z);
       // The camera looks at the margin over the cylinder's top.
       for (double f = 0; f <= 1.0; f += 0.001) {
@@ -860,7 +863,8 @@ void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
       const auto px = pixel_of(p);
       ASSERT_TRUE(px);
       const bool in_shadow = z < kTop && clearance(p.head<2>()) < kRadius;
-      if (std::abs(clearance(p.head<2>()) - kRadius) < 3.0 && z < kTop) continue;  // penumbra
+      // The penumbra, and the shadow's edge within dark_around's ±2 px (~2 mm a pixel there).
+      if (std::abs(clearance(p.head<2>()) - kRadius) < 5.0 && z < kTop) continue;
       if (in_shadow) {
         ++counted["panel hidden"];
         EXPECT_TRUE(dark_around(*px)) << "panel at " << along << " mm, laser " << laser;

@@ -17,9 +17,11 @@ Eigen::Vector3d Vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; 
 nlohmann::json DefaultCameras() {
   // Modelled on the paper's Fig. 1: an upper and a lower camera in front of the subject.
   // Both look down so that the laser planes they triangulate are never seen edge-on:
-  // the upper camera serves heights above ~950 mm, the lower one those below.
+  // the upper camera serves heights above ~950 mm, the lower one those below. The upper
+  // one at 2400 mm sees a 2.05 m person's back in the mirrors above the shoulders
+  // (docs/cabinet-design.md).
   return nlohmann::json::array(
-      {{{"name", "upper"}, {"position_mm", {0, -1800, 2150}}, {"look_at_mm", {0, 300, 1350}}},
+      {{{"name", "upper"}, {"position_mm", {0, -1800, 2400}}, {"look_at_mm", {0, 300, 1550}}},
        {{"name", "lower"}, {"position_mm", {0, -1800, 1350}}, {"look_at_mm", {0, 300, 450}}}});
 }
 
@@ -32,7 +34,7 @@ SceneCamera ParseCamera(const JsonReader& r) {
   CameraIntrinsics& k = c.camera.intrinsics;
   k.width = r.Integer("width", 1024, 16, 16384);
   k.height = r.Integer("height", 768, 16, 16384);
-  const double f = r.Number("f_px", 1400.0, 1.0, 1e6);
+  const double f = r.Number("f_px", 1150.0, 1.0, 1e6);
   k.fx = r.Number("fx", f, 1.0, 1e6);
   k.fy = r.Number("fy", f, 1.0, 1e6);
   k.cx = r.Number("cx", (k.width - 1) / 2.0, -k.width, 2.0 * k.width);
@@ -184,16 +186,17 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
     root.Fail("cameras", "both cameras must run at the same fps");
   }
 
-  // Mirrors, 120° apart by default, meeting at a vertical corner line behind the subject.
+  // Mirrors, 120° apart by default, meeting at a vertical corner line behind the subject;
+  // sized for people 1.45-2.05 m (docs/cabinet-design.md).
   const nlohmann::json empty = nlohmann::json::object();
   const JsonReader mr(json.contains("mirrors") ? json["mirrors"] : empty, file_name, "mirrors");
   mr.AllowOnly({"width_mm", "height_mm", "bottom_mm", "angle_deg", "corner_y_mm", "reflectivity",
                 "left_bump_mm", "right_bump_mm"});
-  const double width = mr.Number("width_mm", 620.0, 50.0, 5000.0);
-  const double height = mr.Number("height_mm", 1700.0, 50.0, 5000.0);
-  const double bottom = mr.Number("bottom_mm", 100.0, 0.0, 3000.0);
+  const double width = mr.Number("width_mm", 1000.0, 50.0, 5000.0);
+  const double height = mr.Number("height_mm", 2100.0, 50.0, 5000.0);
+  const double bottom = mr.Number("bottom_mm", 0.0, 0.0, 3000.0);
   const double angle = mr.Number("angle_deg", 120.0, 60.0, 179.0) * kDeg;
-  const double corner_y = mr.Number("corner_y_mm", 600.0, 100.0, 5000.0);
+  const double corner_y = mr.Number("corner_y_mm", 900.0, 100.0, 5000.0);
   const double reflectivity = mr.Number("reflectivity", 0.9, 0.0, 1.0);
   const double phi = (std::numbers::pi - angle) / 2.0;  // each mirror's turn from the x axis
   const Eigen::Vector3d corner(0.0, corner_y, bottom);
@@ -268,16 +271,18 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
       }
       lasers.emitters_xy.emplace_back(xy[0].get<double>(), xy[1].get<double>());
     }
-  } else {
-    const auto emitter = lr.Numbers("emitter_mm", 2, std::vector<double>{0.0, -900.0});
+  } else if (lr.Has("emitter_mm")) {
+    const auto emitter = lr.Numbers("emitter_mm", 2);
     lasers.emitters_xy = {{emitter[0], emitter[1]}};
   }
   for (const Mirror& m : scene.mirrors) {
     if (m.bump_mm != 0.0 && lasers.emitters_xy.size() > 1) {
-      lr.Fail("emitters_mm", "a bumped mirror's light is modelled from one emitter only");
+      lr.Fail("emitters_mm",
+              "a bumped mirror's light is modelled from one emitter only (give "
+              "lasers.emitter_mm)");
     }
   }
-  lasers.power = lr.Number("power", 1.0, 0.0, 100.0);
+  lasers.power = lr.Number("power", 2.0, 0.0, 100.0);
 
   const JsonReader sr(json.contains("sensor") ? json["sensor"] : empty, file_name, "sensor");
   sr.AllowOnly({"ambient_dn", "laser_dn", "read_noise_dn", "electrons_per_dn", "speckle_contrast",
@@ -326,7 +331,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
     scene.chessboard.emplace(
         ChessboardConfig::Parse(JsonReader(json["chessboard"], file_name, "chessboard")));
   }
-  scene.frames = root.Integer("frames", 300, 1, 100000);
+  scene.frames = root.Integer("frames", 350, 1, 100000);
   const double seed = root.Number("seed", 1.0, 0.0, 9.0e15);
   if (seed != std::floor(seed)) root.Fail("seed", "expected a whole number");
   scene.seed = static_cast<uint64_t>(seed);

@@ -35,8 +35,8 @@ struct Mirror {
   Eigen::Vector3d origin;  // bottom corner at the cabinet's symmetry axis (inner edge)
   Eigen::Vector3d along;   // unit, horizontal, from the inner edge outwards
   Eigen::Vector3d up;      // unit +z
-  double width = 620.0;
-  double height = 1700.0;
+  double width = 1000.0;
+  double height = 2100.0;
   double bump_mm = 0.0;
   double reflectivity = 0.9;
 
@@ -81,8 +81,9 @@ struct Lasers {
   // Where the slide carries each line laser of a level (x, y): all of a level's emitters
   // send the same sheet (coplanar, from different sides), so they light more of the
   // subject without adding planes to tell apart.
-  std::vector<Eigen::Vector2d> emitters_xy{{0.0, -900.0}};
-  double power = 1.0;  // relative; the sensor maps it to DN
+  // By default one in front and one to each side (docs/cabinet-design.md).
+  std::vector<Eigen::Vector2d> emitters_xy{{0.0, -900.0}, {-600.0, -600.0}, {600.0, -600.0}};
+  double power = 2.0;  // relative; the sensor maps it to DN
 
   double HeightAt(int laser, double t) const {
     return start_mm + speed_mm_s * t + laser * spacing_mm;
@@ -141,7 +142,7 @@ struct Scene {
   Subject subject;
   std::optional<RenderedTarget> target;
   std::optional<Chessboard> chessboard;  // held for a lens calibration
-  int frames = 300;
+  int frames = 350;
   uint64_t seed = 1;
 
   // Scene file with every key optional (defaults documented in docs/virtual-cabinet.md);

@@ -25,7 +25,8 @@ TEST(SceneTest, ABodysAlbedoIsPerRegion) {
   EXPECT_NE(error.find("skin_albedo"), std::string::npos) << error;
 }
 
-TEST(SceneTest, DefaultsModelThePaper) {
+// The defaults are the cabinet docs/boards.md draws (docs/cabinet-design.md chose it).
+TEST(SceneTest, DefaultsAreTheCabinetForPeople) {
   const Scene scene = Scene::Parse(nlohmann::json::object(), "scene.json", ".");
   ASSERT_EQ(scene.cameras.size(), 2u);
   EXPECT_EQ(scene.cameras[0].camera.intrinsics.width, 1024);
@@ -33,8 +34,15 @@ TEST(SceneTest, DefaultsModelThePaper) {
   EXPECT_EQ(scene.cameras[0].fps, 30.0);
   EXPECT_EQ(scene.lasers.count, 3);
   EXPECT_EQ(scene.lasers.spacing_mm, 200.0);
-  EXPECT_EQ(scene.mirrors[0].width, 620.0);
-  EXPECT_EQ(scene.mirrors[0].height, 1700.0);
+  EXPECT_EQ(scene.cameras[0].camera.intrinsics.fx, 1150.0);
+  EXPECT_NEAR(scene.cameras[0].camera.CenterInWorld().z(), 2400.0, 1e-9);
+  EXPECT_NEAR(scene.cameras[1].camera.CenterInWorld().z(), 1350.0, 1e-9);
+  EXPECT_EQ(scene.lasers.emitters_xy.size(), 3u);
+  EXPECT_EQ(scene.lasers.power, 2.0);
+  EXPECT_EQ(scene.frames, 350);  // the top laser to 2100 mm
+  EXPECT_EQ(scene.mirrors[0].width, 1000.0);
+  EXPECT_EQ(scene.mirrors[0].height, 2100.0);
+  EXPECT_EQ(scene.mirrors[0].origin, Eigen::Vector3d(0, 900, 0));
   // The mirrors stand 120° apart: their normals are 60° apart (180° - 120°).
   const double angle = std::acos(scene.mirrors[0].plane.normal.dot(scene.mirrors[1].plane.normal));
   EXPECT_NEAR(angle * 180.0 / M_PI, 60.0, 1e-9);
@@ -87,7 +95,10 @@ TEST(SceneTest, EmittersAreAListOfPositionsOnTheSlide) {
       ErrorOf(
           R"({"mirrors": {"left_bump_mm": 1}, "lasers": {"emitters_mm": [[0, -900], [600, -600]]}})"),
       "scene.json: lasers.emitters_mm: a bumped mirror's light is modelled from one emitter "
-      "only");
+      "only (give lasers.emitter_mm)");
+  EXPECT_EQ(ErrorOf(R"({"mirrors": {"left_bump_mm": 1}})"),
+            "scene.json: lasers.emitters_mm: a bumped mirror's light is modelled from one emitter "
+            "only (give lasers.emitter_mm)");
 }
 
 TEST(SceneTest, ShippedScenesLoad) {
@@ -100,7 +111,9 @@ TEST(SceneTest, ShippedScenesLoad) {
 
 TEST(SceneTest, MirrorBumpTiltsTheNormalSmoothly) {
   Scene scene =
-      Scene::Parse(nlohmann::json{{"mirrors", {{"right_bump_mm", 2.0}}}}, "scene.json", ".");
+      Scene::Parse(nlohmann::json{{"mirrors", {{"right_bump_mm", 2.0}}},
+                                  {"lasers", {{"emitter_mm", {0, -900}}}}},
+                   "scene.json", ".");
   const Mirror& m = scene.mirrors[1];
   // Flat at the centre, tilted towards the edges, zero displacement on the rim.
   EXPECT_LT((m.SurfaceNormal({m.width / 2, m.height / 2}) - m.plane.normal).norm(), 1e-12);

@@ -45,7 +45,8 @@ calibration::CalibrationSettings ParseCalibrationSettings(const nlohmann::json& 
   s.mirror_height_mm = r.Number("mirror_height_mm", s.mirror_height_mm, 10.0, 1e4);
   s.mirror_bottom_mm = r.Number("mirror_bottom_mm", s.mirror_bottom_mm, -1e4, 1e4);
   s.panel_offset_mm = r.Number("panel_offset_mm", s.panel_offset_mm, 0.0, 1000.0);
-  const auto corner = r.Numbers("corner_xy_mm", 2, std::vector<double>{0.0, 600.0});
+  const auto corner = r.Numbers(
+      "corner_xy_mm", 2, std::vector<double>{s.corner_xy_mm.x(), s.corner_xy_mm.y()});
   s.corner_xy_mm = {corner[0], corner[1]};
   if (r.Has("lens_chessboard")) {
     const JsonReader b = r.Object("lens_chessboard");

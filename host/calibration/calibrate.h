@@ -47,12 +47,13 @@ struct CalibrationSettings {
   std::vector<std::string> camera_names;
   TargetConfig target;
   std::string target_id = "3panel-aruco48";
-  double mirror_width_mm = 620.0;  // nominal reflecting rectangle, for the view regions
-  double mirror_height_mm = 1700.0;
-  double mirror_bottom_mm = 100.0;
+  // Nominal reflecting rectangle, for the view regions (docs/boards.md's build drawing).
+  double mirror_width_mm = 1000.0;
+  double mirror_height_mm = 2100.0;
+  double mirror_bottom_mm = 0.0;
   double panel_offset_mm =
       6.0;  // nominal; one target image cannot see it, a laser sweep measures it
-  Eigen::Vector2d corner_xy_mm{0.0, 600.0};  // where the mirrors meet, nominal
+  Eigen::Vector2d corner_xy_mm{0.0, 900.0};  // where the mirrors meet, nominal
   // The chessboard held in front of each camera for the lens step
   // (scripts/factory-calibrate --chessboard, calibrate-intrinsics).
   struct LensChessboard {

@@ -52,7 +52,7 @@ CalibrationSettings Settings() {
 // One camera keeps the failure tests fast.
 const nlohmann::json kUpperOnly = {
     {"cameras",
-     {{{"name", "upper"}, {"position_mm", {0, -1800, 2150}}, {"look_at_mm", {0, 300, 1350}}}}}};
+     {{{"name", "upper"}, {"position_mm", {0, -1800, 2400}}, {"look_at_mm", {0, 300, 1550}}}}}};
 
 const ViewReport& ViewOf(const CalibrationResult& r, int camera, ViewId view) {
   return r.cameras.at(camera).views[static_cast<int>(view)];
@@ -127,7 +127,8 @@ TEST(CalibrateTest, FlatMirrorsBothCamerasMatchTruth) {
 
 // A non-flat mirror leaves residuals no plane can explain, on its side only.
 TEST(CalibrateTest, BumpedMirrorShowsOnItsSide) {
-  const Scene scene = MakeScene({{"mirrors", {{"left_bump_mm", 2.0}}}});
+  const Scene scene = MakeScene(
+      {{"mirrors", {{"left_bump_mm", 2.0}}}, {"lasers", {{"emitter_mm", {0, -900}}}}});
   const CalibrationResult result = Calibrate(Render(scene), Settings());
   Print(result);
   ASSERT_TRUE(result.calibration);

@@ -43,6 +43,9 @@ constexpr double kHiddenMinimumMarginMm = 5.0;
 constexpr double kCapSpanMm = 50.0;
 constexpr double kCapBorderClearanceMm = 10.0;
 constexpr double kCapMaxRiseMm = 20.0;
+// How far the fitted cap may top out below the highest surface seen and the latter stand
+// for the top.
+constexpr double kCapMaxBelowMm = 5.0;
 constexpr double kCapMaxRmsMm = 0.5;
 
 // `x` in mm with `decimals` decimals, for the reasons a value is withheld.

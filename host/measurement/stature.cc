@@ -81,12 +81,16 @@ BodyAnalysis::CapTop BodyAnalysis::ExtrapolateHeadTop(double highest) const {
                    " above the highest surface fitted, further than " + Mm(kCapMaxRiseMm);
     return cap;
   }
-  if (fit->top.z() < highest - 1.0) {
-    cap.withheld = "the head's cap fitted below it tops out below its highest surface";
+  const double below = highest - fit->top.z();
+  if (below > kCapMaxBelowMm) {
+    cap.withheld = "the head's cap fitted below it tops out " + Mm(below) +
+                   " below its highest surface, further than " + Mm(kCapMaxBelowMm);
     return cap;
   }
-  cap.z = fit->top.z();
+  // A crown flatter than the cap over a small hole: the top is at least the surface seen.
+  cap.z = std::max(fit->top.z(), highest);
   cap.point = fit->top;
+  cap.point.z() = cap.z;
   cap.confidence = std::clamp(1.0 - std::max(rise, 0.0) / (2.0 * kCapMaxRiseMm), 0.5, 0.95);
   return cap;
 }

@@ -26,11 +26,17 @@ std::unique_ptr<open3d::t::geometry::RaycastingScene> QueryScene(const TriangleM
   std::vector<uint32_t> triangles;
   for (const auto& v : surface.vertices)
     vertices.insert(vertices.end(), {float(v.x()), float(v.y()), float(v.z())});
-  for (const auto& t : surface.triangles)
+  for (const auto& t : surface.triangles) {
+    // Open3D's closest-point query asserts on a triangle of no area (Poisson leaves a few).
+    const Eigen::Vector3f a = surface.vertices[t[0]].cast<float>();
+    const Eigen::Vector3f b = surface.vertices[t[1]].cast<float>();
+    const Eigen::Vector3f c = surface.vertices[t[2]].cast<float>();
+    if ((b - a).cross(c - a).squaredNorm() <= 0.0f) continue;
     triangles.insert(triangles.end(), {uint32_t(t[0]), uint32_t(t[1]), uint32_t(t[2])});
+  }
   auto scene = std::make_unique<open3d::t::geometry::RaycastingScene>();
   scene->AddTriangles(o3c::Tensor(vertices, {long(surface.vertices.size()), 3}, o3c::Float32),
-                      o3c::Tensor(triangles, {long(surface.triangles.size()), 3}, o3c::UInt32));
+                      o3c::Tensor(triangles, {long(triangles.size() / 3), 3}, o3c::UInt32));
   return scene;
 }
 

@@ -132,9 +132,9 @@ class PoseCheckTest : public testing::Test {
                                  {"yaw_deg", -25},
                                  {"lean_deg", 5},
                                  {"head_turn_deg", 35}}));
-    // Taller than the cabinet reaches, turned to his left, arms wide.
+    // Taller than the cabinet reaches (2.10 m), turned to his left, arms wide.
     tall_ = new ScannedBody(Scan({{"sex", "male"},
-                                  {"stature_mm", 1960},
+                                  {"stature_mm", 2180},
                                   {"chest_girth_mm", 1040},
                                   {"waist_girth_mm", 900},
                                   {"hip_girth_mm", 1040},

@@ -21,7 +21,7 @@ TEST(Hypotheses, TheFloorLitByALaserAtItsHeightIsNotTakenByAnother) {
               SummaryText(r.summary).c_str());
   // Without the floor among the hypotheses: 82 of 1,897 points wrong (laser 1 at z 200).
   EXPECT_EQ(score.wrong, 0u);
-  EXPECT_GE(score.matched, score.points * 0.98);
+  EXPECT_GE(score.matched, score.points * 0.97);
 }
 
 // The lower camera sees the panels' laser lines below and beside the mirrors, inside a

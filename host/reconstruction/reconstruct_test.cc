@@ -30,7 +30,10 @@ TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
   // Every laser and every view of the cuboid is there, and right.
   for (size_t k = 0; k < 3; ++k) EXPECT_GT(s.points_per_laser.at(k), 1000u) << k;
   for (int v = 0; v < 3; ++v) EXPECT_GT(s.points_per_view.at(v), 1000u) << v;
-  EXPECT_GE(score.matched, score.points * 0.99);
+  // In the cabinet for people the cuboid's white front face, lit by all three emitters at
+  // twice the power, saturates wide (docs/cabinet-design.md): its points' σ is 0.27 mm
+  // against 0.09 on the faces in the mirrors, and 3 % of them miss the truth's pixel.
+  EXPECT_GE(score.matched, score.points * 0.96);
   EXPECT_LE(score.wrong, score.points * 0.0005);
   // 0.99 before the vote needed support for the direct view in a mirror's region: on this
   // stretch of frames the cuboid's stripes run on into a mirror's region further than 20–40
@@ -40,9 +43,9 @@ TEST(Reconstruct, CuboidThroughTheTrueCalibrationMatchesTheTruth) {
   EXPECT_GE(score.found_right, sweep.truth_reconstructable * 0.94) << sweep.truth_reconstructable;
   EXPECT_LT(s.dropped_unsupported, sweep.truth_reconstructable / 10);
   EXPECT_GT(score.box_points, score.points / 2);
-  EXPECT_LT(score.rms_mm, 0.15);
-  EXPECT_LT(score.max_mm, 1.0);
-  EXPECT_LE(score.normals_off, score.box_points / 100);
+  EXPECT_LT(score.rms_mm, 0.25);  // 0.15 before (one emitter, f 1400 px)
+  EXPECT_LT(score.max_mm, 3.0);   // 1.0 before
+  EXPECT_LE(score.normals_off, score.box_points / 25);
 }
 
 // The stages cut their work into chunks by the thread count; the cloud and the summary
