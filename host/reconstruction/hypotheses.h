@@ -40,7 +40,11 @@ struct Hypothesis {
   float path_mm = 0;               // camera to point along the (unfolded) ray
   uint8_t key = 0;
   bool confirmed = false;  // another camera saw this laser there too
-  bool floor = false;      // on the floor below the cylinder: never a point of the subject
+  // The other lasers at this pixel (laser_sequence.h): how many lit this point at their
+  // moment in the sweep, and how many would have but the pixel saw nothing then.
+  uint8_t sequence_seen = 0;
+  uint8_t sequence_missing = 0;
+  bool floor = false;  // on the floor below the cylinder: never a point of the subject
   // On a panel beside a mirror, where that laser's line runs: laser-height data that the
   // fit did not take (another camera's line, a stretch it left out), never the subject.
   bool panel = false;

@@ -70,6 +70,27 @@ const Sweep& MannequinSweep() {
   return sweep;
 }
 
+const Sweep& PersonInCabinetG() {
+  static const Sweep sweep = RenderSweep(nlohmann::json::parse(R"({
+        "lasers": {"count": 3, "spacing_mm": 200, "start_mm": -50, "speed_mm_s": 150,
+                   "emitters_mm": [[0, -900], [-600, -600], [600, -600]], "power": 2},
+        "mirrors": {"width_mm": 1000, "bottom_mm": 0, "height_mm": 2100, "corner_y_mm": 900},
+        "frames": 350,
+        "cameras": [
+          {"name": "upper", "position_mm": [0, -1800, 2400], "look_at_mm": [0, 300, 1550],
+           "f_px": 1250},
+          {"name": "lower", "position_mm": [0, -1800, 1350], "look_at_mm": [0, 300, 450],
+           "f_px": 1250}]})"),
+                                         120, 220, "population/f12");
+  return sweep;
+}
+
+ReconstructOptions CabinetGOptions() {
+  ReconstructOptions options;
+  options.cylinder.radius_mm = 700;
+  return options;
+}
+
 const TruthPeak* Match(const Sweep& sweep, int camera, int frame, int u, double v) {
   const auto it = sweep.truth.find({camera, frame, u});
   if (it == sweep.truth.end()) return nullptr;

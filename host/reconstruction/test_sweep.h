@@ -52,6 +52,17 @@ const Sweep& CuboidSweep();
 // torso in them, laser 1 at z 1000–1250.
 const Sweep& MannequinSweep();
 
+// A person in cabinet G (docs/cabinet-design.md: three emitters per laser level, mirrors
+// 1000 mm wide from the floor to 2100 mm with their corner 900 mm behind the subject, the
+// upper camera at 2400 mm, f 1250 px, lasers of twice the power), set here in full rather
+// than left to the scene defaults: the population's f12 (1.90 m, heavy, arms at 35°),
+// frames 120–220, where the lower camera sees the arms' silhouettes run along the mirrors'
+// stripes, the upper camera the hands at z 800–1000 in the mirrors (outside the core) and the
+// chest directly in the mirrors' regions.
+const Sweep& PersonInCabinetG();
+// Its hands reach 664 mm from the axis: the cylinder for this cabinet (mirrors 779 mm out).
+ReconstructOptions CabinetGOptions();
+
 // The truth peak of the subject a peak stands for: same camera, frame and column, the
 // nearest row within 2 px; null if none.
 const TruthPeak* Match(const Sweep& sweep, int camera, int frame, int u, double v);

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "host/reconstruction/archive_check.h"
+#include "host/reconstruction/laser_sequence.h"
 
 namespace mirrorscan::reconstruction {
 
@@ -25,6 +26,7 @@ Triangulation Triangulate(const ScanArchive& archive, const Calibration& calibra
   timer->Lap("laser heights");
   timer->Start("triangulation");
   Hypotheses hyp = Hypothesize(archive, geometry, planes, options, rays, threads, &table, summary);
+  MarkLaserSequence(table, planes, threads, &hyp);
   timer->Lap("triangulation");
   return Triangulation{std::move(geometry), std::move(table), std::move(planes), std::move(hyp)};
 }

@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "common/parallel/parallel_for.h"
+#include "host/reconstruction/laser_sequence.h"
 
 namespace mirrorscan::reconstruction {
 
@@ -58,7 +59,9 @@ void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_coun
               continue;
             }
             const int key = hyp[p.first_hypothesis + pick[r]].key;
-            if (key % kMaxLasers != laser || (view >= 0 && key / kMaxLasers != view))
+            // The laser sequence at the pixel says another laser: the count is not the lasers.
+            if (key % kMaxLasers != laser || (view >= 0 && key / kMaxLasers != view) ||
+                !(SequenceAllows(&hyp[p.first_hypothesis], p.hypotheses) >> pick[r] & 1u))
               agrees = false;
             view = key / kMaxLasers;
           }

@@ -1,8 +1,10 @@
 #include "host/reconstruction/rules/cylinder.h"
 
 #include <algorithm>
+#include <cstdlib>
 
 #include "common/parallel/parallel_for.h"
+#include "host/reconstruction/laser_sequence.h"
 
 namespace mirrorscan::reconstruction {
 
@@ -29,9 +31,10 @@ void DecideByCore(const Hypotheses& hyp, const BoundingCylinder& cylinder, int t
       const Hypothesis* first = &hyp[p.first_hypothesis];
       const bool any_confirmed =
           std::any_of(first, first + p.hypotheses, [](const Hypothesis& x) { return x.confirmed; });
+      const uint32_t allowed = SequenceAllows(first, p.hypotheses);
       int in_core = 0, last_in_core = -1;
       for (int h = 0; h < p.hypotheses; ++h) {
-        if ((!any_confirmed || first[h].confirmed) &&
+        if ((!any_confirmed || first[h].confirmed) && (allowed >> h & 1u) &&
             (first[h].Background() || cylinder.CoreContains(first[h].point))) {
           ++in_core;
           last_in_core = h;

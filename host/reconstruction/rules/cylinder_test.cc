@@ -50,5 +50,33 @@ TEST(CylinderRule, DecidesTheTruthsLaserAndView) {
   EXPECT_LE(mannequin.wrong, mannequin.matched / 200);
 }
 
+// A person in cabinet G: the upper camera sees f12's hands in the mirrors at z 800-1000,
+// 600-664 mm from the axis, outside the core, while the same ray meets the next laser's
+// plane up or down inside the core. The laser sequence at the pixel says which laser it is
+// where the other lasers' moments lie in the sweep (on f12's whole sweep the core took the
+// next laser for 7,164 peaks without it; docs/reconstruction.md, stage 2). On this stretch
+// of 100 frames many moments lie outside it: 3,153 wrong with the sequence, 6,510 without;
+// it has to take a third of them at least.
+TEST(CylinderRule, APersonsHandsInTheMirrorsKeepTheirLaser) {
+  const Sweep& sweep = PersonInCabinetG();
+  RuleScore with, without;
+  for (RuleScore* score : {&with, &without}) {
+    RuleBench bench(sweep, CabinetGOptions());
+    if (score == &without) {
+      for (const PeakState& p : bench.t.table.peaks)
+        for (int h = 0; h < p.hypotheses; ++h) {
+          bench.t.hyp[p.first_hypothesis + h].sequence_seen = 0;
+          bench.t.hyp[p.first_hypothesis + h].sequence_missing = 0;
+        }
+    }
+    DecideUpTo(Rule::kCylinder, &bench);
+    *score = ScoreRule(sweep, bench, Rule::kCylinder);
+    std::printf("%s the sequence: decided %zu, %zu of them matched to the truth, %zu wrong\n",
+                score == &with ? "with" : "without", score->decided, score->matched, score->wrong);
+  }
+  EXPECT_GT(with.matched, 50000u);
+  EXPECT_LE(with.wrong * 3, without.wrong * 2);
+}
+
 }  // namespace
 }  // namespace mirrorscan::reconstruction::testing_sweeps

@@ -25,9 +25,28 @@ constexpr double kLinkFrameMm = 25.0;
 constexpr double kKeyOccupancyVoxelMm = 20.0;
 static_assert(kKeys <= 16, "one bit per key in a uint16_t");
 
+// A label joins every pair of neighbours that agree; a surface (part of a label) refuses to
+// join two parts to which peaks decided alone (stereo, the cylinder) gave different keys:
+// two surfaces that touch in the image (an arm's silhouette running along a mirror's stripe
+// for 20 frames), joined through peaks no rule decided. In cabinet G the lower camera's
+// labels held two mirrors' stripes and the arm's at once, and the majority dropped 16,000
+// right peaks of the others (docs/reconstruction.md, stage 4).
+constexpr uint16_t kNoKey = 0xffff;
+// A surface whose key is not its label's majority keeps it only with this many decided
+// peaks and this share of the label's: what a rule decided wrong in a stretch of another key
+// was 1-6 peaks on the people measured in cabinet G, and 77 and 100 (1.2 % of their label)
+// where the mannequin's two cameras confirmed each other's phantoms of its hips in the
+// mirrors (CylinderRule.HandsBeyondTheCoreComeOutWithTheirLaserAndView); the right surfaces
+// were 16-34 % of their labels (thousands of peaks), and 1-2 % (241, 284 peaks, dropped).
+constexpr uint32_t kMinOwnSurfacePeaks = 20;
+constexpr double kMinOwnSurfaceShare = 0.05;
+
 struct UnionFind {
   std::vector<uint32_t> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
+  std::vector<uint16_t> key;  // surfaces: per root, the key its peaks decided alone have
+  explicit UnionFind(size_t n, bool surfaces = false) : parent(n), key(surfaces ? n : 0, kNoKey) {
+    std::iota(parent.begin(), parent.end(), 0u);
+  }
   uint32_t Find(uint32_t x) {
     while (parent[x] != x) {
       parent[x] = parent[parent[x]];
@@ -38,7 +57,12 @@ struct UnionFind {
   void Join(uint32_t a, uint32_t b) {
     a = Find(a);
     b = Find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    if (a == b) return;
+    if (!key.empty()) {
+      if (key[a] != kNoKey && key[b] != kNoKey && key[a] != key[b]) return;
+      key[std::min(a, b)] = key[a] != kNoKey ? key[a] : key[b];
+    }
+    parent[std::max(a, b)] = std::min(a, b);
   }
 };
 
@@ -62,9 +86,10 @@ int FindHypothesis(const Hypotheses& hyp, const PeakState& p, int key) {
   return -1;
 }
 
-// Joins peaks that are neighbours in (column, frame) and agree on some hypothesis.
+// Joins peaks that are neighbours in (column, frame) and agree on some hypothesis, into
+// labels and into surfaces.
 void LinkNeighbours(const PeakTable& table, const Hypotheses& hyp,
-                    const ReconstructOptions& options, UnionFind* labels) {
+                    const ReconstructOptions& options, UnionFind* labels, UnionFind* surfaces) {
   const size_t frames = table.frame_first.size() - 1;
   // Two neighbours decided with different keys are two surfaces that touch in the image (a
   // mirror's stripe beside the subject's stripe of another laser in front of the mirror):
@@ -76,6 +101,7 @@ void LinkNeighbours(const PeakTable& table, const Hypotheses& hyp,
         hyp[pa.first_hypothesis + pa.chosen].key != hyp[pb.first_hypothesis + pb.chosen].key)
       return;
     labels->Join(a, b);
+    surfaces->Join(a, b);
   };
   for (size_t f = 0; f < frames; ++f) {
     const uint32_t begin = table.frame_first[f], end = table.frame_first[f + 1];
@@ -117,9 +143,14 @@ void LinkNeighbours(const PeakTable& table, const Hypotheses& hyp,
 void DecideByLabelVote(const Hypotheses& hyp, const ReconstructOptions& options, int threads,
                        PeakTable* table, ReconstructSummary* summary) {
   const size_t n = table->peaks.size();
-  UnionFind union_find(n);
-  UnionFind* labels = &union_find;
-  LinkNeighbours(*table, hyp, options, labels);
+  UnionFind labels(n);
+  UnionFind surfaces(n, /*surfaces=*/true);
+  for (size_t i = 0; i < n; ++i) {
+    const PeakState& p = table->peaks[i];
+    if (p.chosen >= 0 && (p.rule == Rule::kStereo || p.rule == Rule::kCylinder))
+      surfaces.key[i] = hyp[p.first_hypothesis + p.chosen].key;
+  }
+  LinkNeighbours(*table, hyp, options, &labels, &surfaces);
   const BoundingCylinder& cylinder = options.cylinder;
   NeighbourhoodBits<uint16_t> decided(cylinder, kKeyOccupancyVoxelMm);
   for (const PeakState& p : table->peaks) {
@@ -128,26 +159,45 @@ void DecideByLabelVote(const Hypotheses& hyp, const ReconstructOptions& options,
     decided.Add(h.point, static_cast<uint16_t>(1u << h.key));
   }
   decided.Spread(threads);
-  std::vector<int32_t> label_of_root(n, -1);
+  // Votes per label and per surface (indices into `votes`).
+  std::vector<int32_t> index_of_root(2 * n, -1);
   std::vector<std::array<uint32_t, kKeys>> votes;
-  std::vector<int32_t> label(n, -1);
+  std::vector<int32_t> label(n, -1), surface(n, -1);
+  const auto index = [&](size_t root) {
+    if (index_of_root[root] < 0) {
+      index_of_root[root] = static_cast<int32_t>(votes.size());
+      votes.push_back({});
+    }
+    return index_of_root[root];
+  };
   for (uint32_t i = 0; i < n; ++i) {
     const PeakState& p = table->peaks[i];
     if (p.hypotheses == 0 || p.panel) continue;
-    const uint32_t root = labels->Find(i);
-    if (label_of_root[root] < 0) {
-      label_of_root[root] = static_cast<int32_t>(votes.size());
-      votes.push_back({});
-    }
-    label[i] = label_of_root[root];
-    if (p.chosen >= 0) ++votes[label[i]][hyp[p.first_hypothesis + p.chosen].key];
+    label[i] = index(labels.Find(i));
+    surface[i] = index(n + surfaces.Find(i));
+    if (p.chosen < 0) continue;
+    const int key = hyp[p.first_hypothesis + p.chosen].key;
+    ++votes[label[i]][key];
+    ++votes[surface[i]][key];
   }
   std::vector<int> winner(votes.size(), -1);
+  std::vector<uint32_t> decided_count(votes.size(), 0);
   for (size_t l = 0; l < votes.size(); ++l) {
     const auto best = std::max_element(votes[l].begin(), votes[l].end());
     if (*best > 0) winner[l] = static_cast<int>(best - votes[l].begin());
+    for (uint32_t c : votes[l]) decided_count[l] += c;
   }
-  // Each peak decided on its own from its label's winner, chunk by chunk.
+  // A surface keeps its own key against its label's majority only when it is large enough to
+  // be a surface of its own.
+  const auto key_of = [&](size_t i) {
+    const int own = winner[surface[i]];
+    const uint32_t own_count = decided_count[surface[i]];
+    if (own == winner[label[i]] || (own_count >= kMinOwnSurfacePeaks &&
+                                    own_count >= kMinOwnSurfaceShare * decided_count[label[i]]))
+      return own;
+    return winner[label[i]];
+  };
+  // Each peak decided on its own from its surface's or label's key, chunk by chunk.
   struct Counts {
     size_t ambiguous = 0, conflict = 0, unsupported = 0;
   };
@@ -157,8 +207,16 @@ void DecideByLabelVote(const Hypotheses& hyp, const ReconstructOptions& options,
     for (size_t i = begin; i < end; ++i) {
       PeakState& p = table->peaks[i];
       if (label[i] < 0) continue;
-      const int key = winner[label[i]];
-      if (key < 0) {
+      const int key = key_of(i);
+      // A peak not decided alone that could be either its surface's or its label's is where
+      // the two touch: it joined the surface through a hypothesis that the label's majority
+      // says is the phantom (the mannequin's chest, seen directly, joined to the right
+      // mirror's stripe through its ray's point in the mirror: 848 wrong peaks undecided,
+      // 435 that the volume or the column count took for the mirror's).
+      const int label_key = winner[label[i]];
+      const bool alone = p.rule == Rule::kStereo || p.rule == Rule::kCylinder;
+      if (key < 0 || (!alone && key != label_key && label_key >= 0 &&
+                      FindHypothesis(hyp, p, label_key) >= 0)) {
         ++count.ambiguous;
         p.chosen = -1;
         continue;
@@ -171,9 +229,17 @@ void DecideByLabelVote(const Hypotheses& hyp, const ReconstructOptions& options,
         continue;
       }
       if (p.chosen < 0) {
-        // Only the direct view in a mirror's region is at risk: there the direct ray's other
-        // lasers' points lie in the air beside whatever stands in front of the mirror.
-        if (p.region != 0 && key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
+        // Only the direct view in a mirror's region is at risk, and only where the peak can
+        // be the mirror's: there the direct ray's other lasers' points lie in the air beside
+        // whatever stands in front of the mirror. A ray whose mirror view meets no laser in
+        // the cylinder is no mirror's stripe (in cabinet G the whole direct view lies in the
+        // mirrors' regions, and 17,474 right peaks of m05's chest and shoulders were dropped).
+        const Hypothesis* first = &hyp[p.first_hypothesis];
+        const bool mirror_hyp = std::any_of(first, first + p.hypotheses, [](const Hypothesis& x) {
+          return !x.Background() && x.key / kMaxLasers != static_cast<int>(PointView::kCenter);
+        });
+        if (p.region != 0 && mirror_hyp &&
+            key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
             !(decided.At(hyp[p.first_hypothesis + h].point) >> key & 1u)) {
           ++count.unsupported;
           continue;

@@ -3,9 +3,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <utility>
 
 #include "common/parallel/parallel_for.h"
+#include "host/reconstruction/laser_sequence.h"
 
 namespace mirrorscan::reconstruction {
 
@@ -156,8 +158,10 @@ void DecideByStereo(const Hypotheses& hyp, int threads, std::vector<PeakState>* 
     for (size_t i = begin; i < end; ++i) {
       PeakState& p = (*peaks)[i];
       if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
+      const uint32_t allowed = SequenceAllows(&hyp[p.first_hypothesis], p.hypotheses);
       int confirmed = 0, last_confirmed = -1;
       for (int h = 0; h < p.hypotheses; ++h) {
+        if (!(allowed >> h & 1u)) continue;
         if (hyp[p.first_hypothesis + h].confirmed) {
           ++confirmed;
           last_confirmed = h;

@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdlib>
 
 #include "common/parallel/parallel_for.h"
+#include "host/reconstruction/laser_sequence.h"
 #include "host/reconstruction/voxel_box.h"
 
 namespace mirrorscan::reconstruction {
@@ -83,9 +85,11 @@ void DecideByVolume(std::vector<PeakState>* peaks, const Hypotheses& hyp,
     for (size_t i = begin; i < end; ++i) {
       PeakState& p = (*peaks)[i];
       if (p.rule != Rule::kNone || p.hypotheses < 2) continue;
+      const uint32_t allowed = SequenceAllows(&hyp[p.first_hypothesis], p.hypotheses);
       int found = -1, count = 0;
       for (int h = 0; h < p.hypotheses; ++h) {
         const Hypothesis& x = hyp[p.first_hypothesis + h];
+        if (!(allowed >> h & 1u)) continue;
         if (occupied.At(x.point) && !seen.Hides(x, &hyp[p.first_hypothesis], p.hypotheses)) {
           found = h;
           ++count;
