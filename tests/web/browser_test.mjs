@@ -225,6 +225,9 @@ async function main() {
       [...document.querySelectorAll('#previews img')].every((img) => img.complete && img.naturalWidth > 0),
   { timeout: 60000 });
   check(true, `the previews show (${await page.$$eval('#previews img', (l) => l.map((i) => i.dataset.name).join(', '))})`);
+  // The page fetches measurements.json after it has placed the previews.
+  await page.waitForFunction(() => document.querySelectorAll('#measurements tbody tr').length > 0,
+    { timeout: 30000 }).catch(() => {});
   const measured = await page.$$eval('#measurements tbody tr', (rows) => rows.map((tr) => tr.textContent));
   // Each row a value in cm or the reason it is withheld (a hole, merged arms, ...).
   const rows = await page.$$eval('#measurements tbody tr', (list) =>
