@@ -51,7 +51,8 @@ void Report(benchmark::State& state, size_t total_peaks) {
 }
 
 // Argument 1: the defaults; 0: without the cross-column stage (no along-stripe smoothing,
-// no stripe filters), i.e. columns only.
+// no stripe filters), i.e. columns only; 2: the shipped boards' dim-stripe settings
+// (threshold 10 DN, peaks under 18 DN only on stripes of 7 columns).
 void BM_CabinetExtractSimd(benchmark::State& state) {
   PeakExtractor extractor;
   std::vector<Peak> peaks;
@@ -60,6 +61,10 @@ void BM_CabinetExtractSimd(benchmark::State& state) {
     params.along_stripe_half_width = 0;
     params.drop_isolated_peaks = false;
     params.stripe_end_min_ratio = 0;
+  } else if (state.range(1) == 2) {
+    params.threshold_dn = 10;
+    params.dim_peak_dn = 18;
+    params.dim_stripe_min_columns = 7;
   }
   const auto& frames = Frames(state.range(0));  // rendered once, outside the timing
   size_t i = 0, total = 0;
@@ -75,6 +80,7 @@ BENCHMARK(BM_CabinetExtractSimd)
     ->ArgNames({"frames", "cross_column"})
     ->Args({0, 1})
     ->Args({0, 0})
+    ->Args({0, 2})
     ->Args({1, 1});
 
 // The fair reference: a plain row-major thresholded centre of mass (PlainCentreOfMass).

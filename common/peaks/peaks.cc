@@ -196,6 +196,10 @@ void PeakParams::Validate() const {
   if (!(stripe_end_min_ratio >= 0 && stripe_end_min_ratio <= 1)) {
     Invalid("stripe_end_min_ratio", "must be in [0, 1]");
   }
+  if (dim_peak_dn < 0 || dim_peak_dn > 255) Invalid("dim_peak_dn", "must be in [0, 255]");
+  if (dim_stripe_min_columns < 0 || dim_stripe_min_columns > 64) {
+    Invalid("dim_stripe_min_columns", "must be in [0, 64]");
+  }
   for (size_t i = 0; i < excluded.size(); ++i) {
     const PixelRect& e = excluded[i];
     if (e.x < 0 || e.y < 0 || e.width <= 0 || e.height <= 0) {
@@ -208,7 +212,7 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
   json.AllowOnly({"estimator", "threshold_dn", "window", "min_width_px", "max_width_px",
                   "max_peaks_per_column", "min_separation_px", "saturation_level", "roi",
                   "excluded", "along_stripe_half_width", "drop_isolated_peaks",
-                  "stripe_end_min_ratio"});
+                  "stripe_end_min_ratio", "dim_peak_dn", "dim_stripe_min_columns"});
   PeakParams p;
   std::vector<std::string> names;
   for (const auto& n : kEstimatorNames) names.push_back(n.name);
@@ -245,6 +249,9 @@ PeakParams PeakParams::FromJson(const JsonReader& json) {
   p.drop_isolated_peaks = json.Bool("drop_isolated_peaks", p.drop_isolated_peaks);
   p.stripe_end_min_ratio =
       static_cast<float>(json.Number("stripe_end_min_ratio", p.stripe_end_min_ratio, 0, 1));
+  p.dim_peak_dn = json.Integer("dim_peak_dn", p.dim_peak_dn, 0, 255);
+  p.dim_stripe_min_columns =
+      json.Integer("dim_stripe_min_columns", p.dim_stripe_min_columns, 0, 64);
   try {
     p.Validate();
   } catch (const std::invalid_argument& e) {
@@ -568,10 +575,13 @@ constexpr QuadraticKernels kQuadraticKernels;
 void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* start,
                      std::vector<float>* rows, std::vector<int32_t>* links,
                      std::vector<uint8_t>* dropped, std::vector<uint8_t>* extent,
-                     std::vector<Peak>* peaks) {
+                     std::vector<int32_t>* stripe, std::vector<Peak>* peaks) {
   const int half_width = params.along_stripe_half_width;
   const float end_ratio = params.stripe_end_min_ratio;
-  if (half_width < 2 && !params.drop_isolated_peaks && !(end_ratio > 0)) return;
+  if (half_width < 2 && !params.drop_isolated_peaks && !(end_ratio > 0) &&
+      params.dim_stripe_min_columns < 2) {
+    return;
+  }
   const size_t count = start[ncols];
   Peak* p = peaks->data();
   rows->resize(count);
@@ -657,6 +667,40 @@ void AlongStripePass(const PeakParams& params, int ncols, int x0, uint32_t* star
   }
   for (size_t i = 0; i < 2 * count; ++i)
     if (link[i] >= 0 && (*dropped)[link[i]]) link[i] = -1;
+  if (params.dim_stripe_min_columns > 1 && params.dim_peak_dn > params.threshold_dn) {
+    // Noise near the threshold makes peaks, now and then two in a row, but not a stripe:
+    // a peak fainter than dim_peak_dn stays only on a stripe of at least
+    // dim_stripe_min_columns linked peaks (union-find over the links).
+    stripe->resize(2 * count);
+    int32_t* root = stripe->data();
+    int32_t* size = root + count;
+    for (size_t i = 0; i < count; ++i) root[i] = static_cast<int32_t>(i), size[i] = 1;
+    auto find = [&](int32_t i) {
+      while (root[i] != i) i = root[i] = root[root[i]];
+      return i;
+    };
+    for (size_t i = 0; i < 2 * count; ++i) {
+      if (link[i] < 0) continue;
+      int32_t a = find(static_cast<int32_t>(i / 2)), b = find(link[i]);
+      if (a == b) continue;
+      if (size[a] < size[b]) std::swap(a, b);
+      root[b] = a;
+      size[a] += size[b];
+    }
+    const float dim = static_cast<float>(params.dim_peak_dn);
+    bool any = false;
+    for (size_t i = 0; i < count; ++i) {
+      if ((*dropped)[i] || !(p[i].intensity < dim)) continue;
+      if (size[find(static_cast<int32_t>(i))] < params.dim_stripe_min_columns) {
+        (*dropped)[i] = 1;
+        any = true;
+      }
+    }
+    if (any) {
+      for (size_t i = 0; i < 2 * count; ++i)
+        if (link[i] >= 0 && (*dropped)[link[i]]) link[i] = -1;
+    }
+  }
   if (half_width >= 2) {
     auto bends = [&](int a, int b, int c) { return std::abs(v[a] - 2 * v[b] + v[c]) > kKinkPx; };
     // extent[2i] / extent[2i + 1]: how many columns (up to the half width) the stripe goes on
@@ -820,7 +864,7 @@ void PeakExtractor::Run(const ImageView& image, const PeakParams& params, bool s
   column_start_[ncols] = static_cast<uint32_t>(write);
   out->resize(write);
   AlongStripePass(params, ncols, roi.x0, column_start_.data(), &rows_, &links_, &dropped_, &extent_,
-                  out);
+                  &stripe_, out);
 }
 
 std::vector<Peak> ExtractPeaks(const ImageView& image, const PeakParams& params) {

@@ -21,9 +21,9 @@
 //     (keep the strongest).
 //  3. Across columns (shared, so SIMD and scalar agree): each peak is linked to its stripe's peaks
 //  in the columns
-//     beside it; isolated peaks and faded stripe ends are dropped (drop_isolated_peaks,
-//     stripe_end_min_ratio), and each row is smoothed along its stripe
-//     (along_stripe_half_width).
+//     beside it; isolated peaks, faded stripe ends and dim peaks on short stripes are dropped
+//     (drop_isolated_peaks, stripe_end_min_ratio, dim_peak_dn), and each row is smoothed along its
+//     stripe (along_stripe_half_width).
 
 #include <cstddef>
 #include <cstdint>
@@ -100,6 +100,12 @@ struct PeakParams {
   // A stripe's end peak (a neighbour on one side only) is dropped if its amplitude is
   // below this fraction of that neighbour's; 0 keeps every end.
   float stripe_end_min_ratio = 0.5f;
+  // Dim stripes: a peak whose amplitude is under dim_peak_dn is kept only on a stripe of at
+  // least dim_stripe_min_columns linked peaks, so the threshold can sit near the noise (a
+  // mirror's view of a back lit at a grazing angle holds 10-17 DN) without letting noise
+  // peaks through. dim_stripe_min_columns 0 or 1, or dim_peak_dn <= threshold_dn: off.
+  int dim_peak_dn = 0;
+  int dim_stripe_min_columns = 0;
 
   // Throws std::invalid_argument "peaks.<key>: problem" on bad values.
   void Validate() const;
@@ -108,7 +114,8 @@ struct PeakParams {
   //  "max_width_px": 8, "max_peaks_per_column": 9, "min_separation_px": 3,
   //  "saturation_level": 255, "roi": {"x":0,"y":0,"width":0,"height":0},
   //  "excluded": [{"x":..,"y":..,"width":..,"height":..}, ...],
-  //  "along_stripe_half_width": 5, "drop_isolated_peaks": true, "stripe_end_min_ratio": 0.5}
+  //  "along_stripe_half_width": 5, "drop_isolated_peaks": true, "stripe_end_min_ratio": 0.5,
+  //  "dim_peak_dn": 0, "dim_stripe_min_columns": 0}
   // Errors are ConfigError "file: peaks.key: problem".
   static PeakParams FromJson(const JsonReader& json);
 };
@@ -146,6 +153,7 @@ class PeakExtractor {
   std::vector<int32_t> links_;  // Each peak's neighbours along its stripe.
   std::vector<uint8_t> dropped_;
   std::vector<uint8_t> extent_;  // How far each peak's stripe goes on, per side.
+  std::vector<int32_t> stripe_;  // Union-find roots and sizes of the stripes (dim peaks).
 };
 
 // The fair reference for speed and accuracy: a plain thresholded centre of mass, as one

@@ -644,6 +644,65 @@ TEST(AlongStripe, IsolatedPeaksAndFadedEndsDropped) {
   EXPECT_EQ(all.size(), peaks.size() + 2);
 }
 
+// A threshold near the noise finds a dim stripe (a mirror's view of a back lit at a grazing
+// angle: 10-17 DN on rendered frames) but also noise peaks, some in pairs of adjacent
+// columns that the isolated-peak rule keeps. Dim peaks must lie on a stripe of
+// dim_stripe_min_columns: the stripe stays, the noise and a short dim blob go, and a short
+// bright stripe is untouched.
+TEST(AlongStripe, DimPeaksStayOnlyOnLongStripes) {
+  Scene scene;
+  scene.ambient = 6;
+  scene.ambient_du = 0;
+  scene.ambient_dv = 0;
+  scene.noise_sigma = 2.5;  // the rendered frames' dark background, ~2-3 DN
+  synth::Stripe dim{.v0 = 300.4, .slope = 0.02, .amplitude = 16, .sigma = 0.9};
+  scene.stripes = {dim};
+  PeakParams low;
+  low.threshold_dn = 8;
+  PeakParams rule = low;
+  rule.dim_peak_dn = 18;
+  rule.dim_stripe_min_columns = 7;
+  int stripe_found = 0, stripe_total = 0, false_low = 0, false_rule = 0;
+  int short_dim_kept = 0, short_bright_kept = 0;
+  constexpr int kFrames = 6;
+  for (int seed = 0; seed < kFrames; ++seed) {
+    Frame f = synth::Render(scene, 100 + seed);
+    // Four columns of a dim blob and four of a bright one, far from the stripe.
+    for (int u = 600; u < 604; ++u) AddColumnProfile(&f, u, 600.3, 14);
+    for (int u = 800; u < 804; ++u) AddColumnProfile(&f, u, 650.3, 90);
+    const auto with_low = ExtractPeaks(f.view(), low);
+    const auto with_rule = ExtractPeaks(f.view(), rule);
+    auto off_stripe = [&](const std::vector<Peak>& peaks) {
+      int n = 0;
+      for (const Peak& p : peaks) {
+        const bool blob = (p.u >= 600 && p.u < 604) || (p.u >= 800 && p.u < 804);
+        n += !blob && std::abs(p.v - dim.Centre(p.u)) > 2;
+      }
+      return n;
+    };
+    false_low += off_stripe(with_low);
+    false_rule += off_stripe(with_rule);
+    for (int u = 0; u < f.width; ++u) {
+      ++stripe_total;
+      stripe_found += CountAt(with_rule, u, dim.Centre(u));
+    }
+    for (int u = 600; u < 604; ++u) short_dim_kept += CountAt(with_rule, u, 600.3);
+    for (int u = 800; u < 804; ++u) short_bright_kept += CountAt(with_rule, u, 650.3);
+  }
+  std::printf(
+      "dim stripe found %d / %d; off-stripe peaks in %d frames: %d at 8 DN, %d with "
+      "the rule\n",
+      stripe_found, stripe_total, kFrames, false_low, false_rule);
+  EXPECT_GT(stripe_found, 0.9 * stripe_total);
+  EXPECT_GT(false_low, 4 * kFrames);  // the noise the rule is for
+  EXPECT_LE(false_rule, 1);
+  EXPECT_EQ(short_dim_kept, 0);
+  EXPECT_EQ(short_bright_kept, 4 * kFrames);
+  // At the default threshold the same stripe is mostly lost.
+  const auto at18 = ExtractPeaks(synth::Render(scene, 100).view(), PeakParams());
+  EXPECT_LT(at18.size(), 0.3 * scene.width);
+}
+
 // A wide stripe is blurred along u as much as across it, so its light fades out over a few
 // columns past where the stripe ends; clipped, those columns are as wide as the stripe and
 // more than half as bright as their neighbour, so the one-column end rule kept them (on
@@ -735,7 +794,7 @@ TEST(PeakParamsTest, FromJsonReadsAndRejects) {
   const auto good = JsonReader::ParseText(
       R"({"peaks": {"estimator": "gaussian3", "threshold_dn": 25, "window": 10,
           "along_stripe_half_width": 3, "drop_isolated_peaks": false,
-          "stripe_end_min_ratio": 0.25,
+          "stripe_end_min_ratio": 0.25, "dim_peak_dn": 20, "dim_stripe_min_columns": 9,
           "roi": {"x": 1, "y": 2, "width": 30, "height": 40},
           "excluded": [{"x": 5, "y": 6, "width": 7, "height": 8}]}})",
       "board.json");
@@ -746,6 +805,8 @@ TEST(PeakParamsTest, FromJsonReadsAndRejects) {
   EXPECT_EQ(p.along_stripe_half_width, 3);
   EXPECT_FALSE(p.drop_isolated_peaks);
   EXPECT_FLOAT_EQ(p.stripe_end_min_ratio, 0.25f);
+  EXPECT_EQ(p.dim_peak_dn, 20);
+  EXPECT_EQ(p.dim_stripe_min_columns, 9);
   EXPECT_EQ(p.roi.height, 40);
   ASSERT_EQ(p.excluded.size(), 1u);
   EXPECT_EQ(p.excluded[0].width, 7);
@@ -784,6 +845,9 @@ TEST(PeakParamsTest, FromJsonReadsAndRejects) {
             std::string::npos);
   EXPECT_NE(error(R"({"peaks": {"drop_isolated_peaks": 1}})").find("peaks.drop_isolated_peaks"),
             std::string::npos);
+  EXPECT_NE(
+      error(R"({"peaks": {"dim_stripe_min_columns": 65}})").find("peaks.dim_stripe_min_columns"),
+      std::string::npos);
   PeakParams bad;
   bad.stripe_end_min_ratio = -0.1f;
   EXPECT_THROW(bad.Validate(), std::invalid_argument);

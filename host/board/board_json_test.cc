@@ -67,7 +67,9 @@ TEST(BoardJson, PeakParamsFromBoard) {
   const std::string source = MIRRORSCAN_SOURCE_DIR;
   const PeakParams virtual_board = PeakParamsFromBoard(source + "/boards/virtual/board.json");
   EXPECT_EQ(virtual_board.estimator, PeakEstimator::kAdaptive);
-  EXPECT_EQ(virtual_board.threshold_dn, 18);
+  EXPECT_EQ(virtual_board.threshold_dn, 10);
+  EXPECT_EQ(virtual_board.dim_peak_dn, 18);
+  EXPECT_EQ(virtual_board.dim_stripe_min_columns, 7);
   EXPECT_EQ(virtual_board.max_peaks_per_column, 9);
   const auto path = std::filesystem::temp_directory_path() / "host_board_peaks.json";
   std::ofstream(path) << R"({"board": "x"})";

@@ -123,7 +123,7 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--board", o->board, "board.json whose reconstruction.bounding_cylinder to use")
       ->check(CLI::ExistingFile);
   cmd->add_option("--cylinder-radius", o->radius_mm,
-                  "Bounding cylinder radius, mm: no point beyond it (default 650)")
+                  "Bounding cylinder radius, mm: no point beyond it (default 850)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cylinder-core-radius", o->core_radius_mm,
                   "Its core, mm: one hypothesis there decides a peak alone (default 450)")

@@ -11,9 +11,9 @@ namespace mirrorscan::reconstruction {
 // gives its own in board.json (host/board/board_config.h).
 struct BoundingCylinder {
   Eigen::Vector2d center_mm = Eigen::Vector2d::Zero();
-  double radius_mm = 650.0;
+  double radius_mm = 850.0;
   double core_radius_mm = 450.0;
-  double bottom_mm = 20.0;
+  double bottom_mm = 10.0;
   double top_mm = 2100.0;
   bool Contains(const Eigen::Vector3d& point) const;
   bool CoreContains(const Eigen::Vector3d& point) const;

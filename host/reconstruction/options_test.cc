@@ -27,7 +27,7 @@ TEST(Options, TheDefaultsAreValidAndABadValueIsNamed) {
   EXPECT_NE(ValidationError(options).find("stereo_max_mm is -1"), std::string::npos)
       << ValidationError(options);
   options = {};
-  options.cylinder.top_mm = 10;
+  options.cylinder.top_mm = 5;  // below the 10 mm bottom
   EXPECT_NE(ValidationError(options).find("cylinder.top_mm"), std::string::npos);
   options = {};
   options.min_confidence = std::nan("");

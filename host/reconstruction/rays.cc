@@ -6,6 +6,9 @@
 #include "host/reconstruction/archive_check.h"
 
 namespace mirrorscan::reconstruction {
+namespace {
+constexpr double kPanelEdgeMm = 40.0;
+}  // namespace
 
 Geometry CabinetGeometry(const ScanArchive& archive, const Calibration& calibration,
                          const ReconstructOptions& options, ReconstructSummary* summary) {
@@ -27,6 +30,15 @@ Geometry CabinetGeometry(const ScanArchive& archive, const Calibration& calibrat
     }
     g.panels =
         LaserCabinetFromCalibration(calibration, "calibration", options.panel_margin_mm).panels;
+    // A peak on a panel's last pixels (its outer or top edge, blurred, or a calibration a
+    // few mm off) has a ray that just misses the rectangle; without the panel as a way it
+    // came about, another laser's point in front of the panel took it (cylinder 850: 594
+    // points 380-730 mm off the body on f12, all at the image's left and right edges).
+    // Nothing of the subject is out there, so the panels reach a little further here.
+    for (PlanarRectangle& panel : g.panels) {
+      panel.width += kPanelEdgeMm;
+      panel.height += kPanelEdgeMm;
+    }
   } else {
     summary->warnings.push_back(
         "the calibration has no mirror corners: rays through both mirrors are not followed");
