@@ -142,6 +142,7 @@ Hypotheses Hypothesize(const ScanArchive& archive, const Geometry& g, const Lase
           ++count.panel;
           continue;
         }
+        if (p.still) continue;  // counted by MarkStillPeaks
         if (!planes.valid[f]) {
           ++count.no_ray;
           continue;

@@ -26,6 +26,7 @@ struct PeakState {
   uint8_t region = 0;   // the calibration view region: 0 centre, 1 left, 2 right
   bool panel = false;   // the laser fit took it as a panel's line (laser-height data)
   bool no_ray = false;  // undistortion failed
+  bool still = false;   // stays put across frames: the ambient scene's (still_peaks.h)
   int16_t chosen = -1;  // index among its hypotheses; -1: undecided or dropped
   Rule rule = Rule::kNone;
 };

@@ -53,6 +53,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
           {"dropped",
            {{"panel", s.dropped_panel},
             {"no_ray", s.dropped_no_ray},
+            {"still", s.dropped_still},
             {"outside_volume", s.dropped_outside},
             {"floor", s.dropped_floor},
             {"ambiguous", s.dropped_ambiguous},
@@ -102,13 +103,13 @@ std::string SummaryText(const ReconstructSummary& s) {
       s.decided_by_stereo, s.decided_by_cylinder, s.decided_by_volume, s.decided_by_column_count,
       s.decided_by_label_vote);
   text += Format(
-      "  dropped: panel %zu, no ray %zu, outside volume %zu, floor %zu, ambiguous %zu, conflict "
-      "%zu, unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, stripe "
-      "end %zu, outlier %zu, low confidence %zu, off surface %zu\n",
-      s.dropped_panel, s.dropped_no_ray, s.dropped_outside, s.dropped_floor, s.dropped_ambiguous,
-      s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through, s.dropped_flat_angle,
-      s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier, s.dropped_low_confidence,
-      s.dropped_off_surface);
+      "  dropped: panel %zu, no ray %zu, still %zu, outside volume %zu, floor %zu, ambiguous %zu, "
+      "conflict %zu, unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, "
+      "stripe end %zu, outlier %zu, low confidence %zu, off surface %zu\n",
+      s.dropped_panel, s.dropped_no_ray, s.dropped_still, s.dropped_outside, s.dropped_floor,
+      s.dropped_ambiguous, s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through,
+      s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier,
+      s.dropped_low_confidence, s.dropped_off_surface);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

@@ -57,6 +57,7 @@ struct ReconstructSummary {
   size_t decided_by_label_vote = 0;
   size_t dropped_panel = 0;      // the laser line on a panel (laser-height data)
   size_t dropped_no_ray = 0;     // undistortion failed / ray misses everything
+  size_t dropped_still = 0;      // stays put across frames: the ambient scene, no laser line
   size_t dropped_outside = 0;    // no hypothesis inside the bounding cylinder
   size_t dropped_floor = 0;      // the floor lit by a laser at its height
   size_t dropped_ambiguous = 0;  // several hypotheses and nothing to decide

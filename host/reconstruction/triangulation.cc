@@ -6,6 +6,7 @@
 
 #include "host/reconstruction/archive_check.h"
 #include "host/reconstruction/laser_sequence.h"
+#include "host/reconstruction/still_peaks.h"
 
 namespace mirrorscan::reconstruction {
 
@@ -15,10 +16,14 @@ Triangulation Triangulate(const ScanArchive& archive, const Calibration& calibra
   CheckArchive(archive, calibration, options, summary);
   Geometry geometry = CabinetGeometry(archive, calibration, options, summary);
   PeakTable table = ReadPeaks(archive, threads, summary);
+  summary->dropped_still = MarkStillPeaks(threads, &table);
   timer->Lap("read");
   timer->Start("rays");
-  // Each peak undistorted and back-projected once, for the laser fit and the hypotheses.
-  const std::vector<std::optional<Ray3d>> rays = PeakRays(geometry, archive, table, threads);
+  // Each peak undistorted and back-projected once, for the laser fit and the hypotheses; a
+  // still peak's ray is left out of both.
+  std::vector<std::optional<Ray3d>> rays = PeakRays(geometry, archive, table, threads);
+  for (size_t i = 0; i < rays.size(); ++i)
+    if (table.peaks[i].still) rays[i].reset();
   timer->Lap("rays");
   timer->Start("laser heights");
   LaserPlanes planes = FitLaserPlanes(archive, calibration, geometry.cameras, options, rays,
