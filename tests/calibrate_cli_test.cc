@@ -93,8 +93,9 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   for (const nlohmann::json& frame : lasers["frames"]) {
     const double t = frame["time_s"].get<double>();
     for (int k = 0; k < 3; ++k) {
-      // The scene's lasers: -50 mm at t = 0, 2400 mm/s, 200 mm apart.
-      EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 2400.0 * t + 200.0 * k, 0.1);
+      // The scene's lasers: -50 mm at t = 0, 2400 mm/s, 200 mm apart; within 0.2 mm, as the
+      // panels fix the tilt about x (0.17 mm here, laser_height_test's kHeightMaxMm).
+      EXPECT_NEAR(frame["heights_mm"][k].get<double>(), -50.0 + 2400.0 * t + 200.0 * k, 0.2);
     }
   }
   EXPECT_LT(lasers["residual_rms_mm"].get<double>(), 0.1);
@@ -106,7 +107,7 @@ TEST(CalibrateCli, LasersOfASimulatedScan) {
   ASSERT_EQ(fitted["lasers"]["offsets_mm"].size(), 3u);
   for (int k = 0; k < 3; ++k)
     EXPECT_NEAR(fitted["lasers"]["offsets_mm"][k].get<double>(), 200.0 * k, 0.1);
-  EXPECT_NEAR(fitted["lasers"]["readback_offset_mm"].get<double>(), 0.0, 0.1);
+  EXPECT_NEAR(fitted["lasers"]["readback_offset_mm"].get<double>(), 0.0, 0.2);
   // Two cameras measure the panels 6 mm behind their mirrors; the fitted calibration keeps
   // what was measured.
   EXPECT_TRUE(lasers["ok"].get<bool>());

@@ -49,9 +49,11 @@ TEST(ReconstructCli, WritesThePlyAndTheSummary) {
   const nlohmann::json summary = nlohmann::json::parse(r.out);
   EXPECT_GT(summary["points"].get<size_t>(), 10000u);
   EXPECT_EQ(summary["laser_height"]["source"], "panels");
+  // 3,894 ambiguous and 1,137 conflicts for 56,813 points with the 850 mm cylinder, which
+  // holds hypotheses out to the mirrors (1,804 and 1,113 for 58,949 with 650 mm).
   EXPECT_LT(
       summary["dropped"]["ambiguous"].get<size_t>() + summary["dropped"]["conflict"].get<size_t>(),
-      summary["points"].get<size_t>() / 30)
+      summary["points"].get<size_t>() / 10)
       << summary.dump(2);
   std::string header = test_support::ReadFile(d / "points.ply");
   header.resize(header.find("end_header"));

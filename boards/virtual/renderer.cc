@@ -273,7 +273,8 @@ std::vector<Renderer::LaserLight> Renderer::LaserLights(const Eigen::Vector3d& p
     const Eigen::Vector3d d = emitter - point;
     const double r = d.norm();
     const Eigen::Vector3d dir = d / r;
-    if (normal.dot(dir) > 0 && !tracer_.Occluded({point, dir}, 0.05, r - 0.05)) {
+    if (normal.dot(dir) > 0 && lasers.InFan(e, point) &&
+        !tracer_.Occluded({point, dir}, 0.05, r - 0.05)) {
       own_sheet += contribution(dir, r);
     }
     for (const Mirror& mirror : scene_.mirrors) {
@@ -287,7 +288,7 @@ std::vector<Renderer::LaserLight> Renderer::LaserLights(const Eigen::Vector3d& p
       const auto t = IntersectRayPlane(to_mirror, mirror.plane, 0.05);
       if (!t || *t >= length) continue;
       const Eigen::Vector3d on_mirror = to_mirror.At(*t);
-      if (!mirror.Contains(on_mirror)) continue;
+      if (!mirror.Contains(on_mirror) || !lasers.InFan(e, on_mirror)) continue;
       if (tracer_.Occluded(to_mirror, 0.05, *t - 0.05)) continue;
       const Eigen::Vector3d back = emitter - on_mirror;
       const double back_length = back.norm();
@@ -305,7 +306,7 @@ std::vector<Renderer::LaserLight> Renderer::LaserLights(const Eigen::Vector3d& p
     const auto t = IntersectRayPlane(sight, mirror.plane, 1e-6);
     if (!t) continue;
     const Eigen::Vector3d in_plane = sight.At(*t);
-    if (!mirror.Contains(in_plane)) continue;
+    if (!mirror.Contains(in_plane) || !lasers.InFan(0, in_plane)) continue;
     const Eigen::Vector3d on_mirror =
         in_plane + mirror.Displacement(mirror.Local(in_plane)) * mirror.plane.normal;
     const Eigen::Vector3d d = on_mirror - point;

@@ -812,6 +812,7 @@ void CheckShadowsOfACylinder(const std::vector<Eigen::Vector2d>& emitters) {
                          {"sensor", {{"noise", false}}}};
   json["lasers"]["emitters_mm"] = nlohmann::json::array();
   for (const Eigen::Vector2d& e : emitters) json["lasers"]["emitters_mm"].push_back({e.x(), e.y()});
+  json["lasers"]["fan_deg"] = 360;  // shadows, not fans: the panel's margin lies outside 90°
   const Renderer renderer(Scene::Parse(json, "shadow.json", "."));
   const double t = 4.0;  // laser 0 at 550 mm crosses the cylinder; lasers 1, 2 pass over it
   const cv::Mat on = ToMat(renderer.RenderFrame(1, t, 3, true));
@@ -907,6 +908,38 @@ TEST(RendererTest, PointHiddenFromTheLaserStaysDark) { CheckShadowsOfACylinder({
 // A second emitter on the slide (the same sheets) lights part of the first one's shadow.
 TEST(RendererTest, ASecondEmitterLightsPartOfTheFirstOnesShadow) {
   CheckShadowsOfACylinder({{0.0, -900.0}, {600.0, -700.0}});
+}
+
+// An emitter behind the subject, in the mirrors' corner, aimed at the axis with a 90° fan:
+// a point facing it is lit up to 45° off its aim and not beyond, and a point it reaches only
+// by way of the right mirror (the light leaving it about 107° off its aim, towards the glass
+// at (112, 835)) is dark; with the whole sheet lit (fan 360) that point is lit through the
+// mirror. The angles are worked out from the scene's geometry, not by the renderer.
+TEST(RendererTest, AnEmittersFanEndsAtItsEdges) {
+  auto renderer_with_fan = [](double fan_deg) {
+    const nlohmann::json json = {
+        {"subject",
+         {{"type", "cylinder"}, {"radius_mm", 5}, {"height_mm", 5}, {"center_mm", {0, -1500}}}},
+        {"lasers", {{"emitters_mm", {{0, 800}}}, {"fan_deg", fan_deg}}},
+        {"sensor", {{"noise", false}}}};
+    return std::make_unique<Renderer>(Scene::Parse(json, "fan.json", "."));
+  };
+  const auto fan90 = renderer_with_fan(90);
+  const auto fan360 = renderer_with_fan(360);
+  const Eigen::Vector3d emitter(0, 800, 500);
+  for (double deg : {-46.0, -44.0, 0.0, 44.0, 46.0}) {
+    const double a = deg * M_PI / 180.0;
+    const Eigen::Vector3d point = emitter + 500.0 * Eigen::Vector3d(std::sin(a), -std::cos(a), 0);
+    const Eigen::Vector3d facing = (emitter - point).normalized();
+    EXPECT_EQ(fan90->LaserIrradiance(point, facing) > 0, std::abs(deg) < 45) << deg << "°";
+    EXPECT_GT(fan360->LaserIrradiance(point, facing), 0) << deg << "°";
+  }
+  // At (300, 0) facing (0.95, 0.31): the emitter lies behind that face's plane, its image in
+  // the right mirror, (86, 949), in front of it; its image in the left one behind it.
+  const Eigen::Vector3d point(300, 0, 500);
+  const Eigen::Vector3d normal = Eigen::Vector3d(0.95, 0.31, 0).normalized();
+  EXPECT_GT(fan360->LaserIrradiance(point, normal), 0);
+  EXPECT_EQ(fan90->LaserIrradiance(point, normal), 0);
 }
 
 TEST(RendererTest, SameSeedSameFrameOtherFrameOtherNoise) {

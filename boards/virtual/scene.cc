@@ -243,7 +243,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
 
   const JsonReader lr(json.contains("lasers") ? json["lasers"] : empty, file_name, "lasers");
   lr.AllowOnly({"count", "spacing_mm", "start_mm", "speed_mm_s", "sheet_sigma_mm", "tilt_deg",
-                "emitter_mm", "emitters_mm", "power"});
+                "emitter_mm", "emitters_mm", "power", "fan_deg"});
   Lasers& lasers = scene.lasers;
   lasers.count = lr.Integer("count", 3, 1, 3);
   lasers.spacing_mm = lr.Number("spacing_mm", 200.0, 20.0, 2000.0);
@@ -283,6 +283,7 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
     }
   }
   lasers.power = lr.Number("power", 2.0, 0.0, 100.0);
+  lasers.fan_deg = lr.Number("fan_deg", 90.0, 1.0, 360.0);
 
   const JsonReader sr(json.contains("sensor") ? json["sensor"] : empty, file_name, "sensor");
   sr.AllowOnly({"ambient_dn", "laser_dn", "read_noise_dn", "electrons_per_dn", "speckle_contrast",

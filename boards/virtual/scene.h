@@ -1,6 +1,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -81,14 +82,30 @@ struct Lasers {
   // Where the slide carries each line laser of a level (x, y): all of a level's emitters
   // send the same sheet (coplanar, from different sides), so they light more of the
   // subject without adding planes to tell apart.
-  // By default one in front and one to each side (docs/cabinet-design.md).
-  std::vector<Eigen::Vector2d> emitters_xy{{0.0, -900.0}, {-600.0, -600.0}, {600.0, -600.0}};
+  // By default one in front, one to each side and one behind the subject, in the mirrors'
+  // corner (docs/cabinet-design.md).
+  std::vector<Eigen::Vector2d> emitters_xy{
+      {0.0, -900.0}, {-600.0, -600.0}, {600.0, -600.0}, {0.0, 800.0}};
   double power = 2.0;  // relative; the sensor maps it to DN
+  // Each emitter's fan in its sheet, centred on the line from it to the subject's axis
+  // (x, y = 0): a real line laser lights a sector, so the one behind the subject reaches
+  // neither the mirrors nor the panels. 360 lights the whole sheet.
+  double fan_deg = 90.0;
 
   double HeightAt(int laser, double t) const {
     return start_mm + speed_mm_s * t + laser * spacing_mm;
   }
   Plane PlaneAt(int laser, double t) const { return Plane{normal, -HeightAt(laser, t)}; }
+  // Whether light from emitter `e` towards `target` (any height) leaves inside its fan.
+  bool InFan(size_t e, const Eigen::Vector3d& target) const {
+    if (fan_deg >= 360.0) return true;
+    const Eigen::Vector2d& xy = emitters_xy[e];
+    const Eigen::Vector2d to_target = target.head<2>() - xy;
+    const Eigen::Vector2d to_axis = -xy;
+    const double norms = to_target.norm() * to_axis.norm();
+    if (norms == 0.0) return true;  // an emitter on the axis has no aim: all of it
+    return to_target.dot(to_axis) >= std::cos(fan_deg * M_PI / 360.0) * norms;
+  }
   // Emitter `e` on the slide, in the sheet through `point`.
   Eigen::Vector3d EmitterFor(const Eigen::Vector3d& point, size_t e = 0) const {
     const Eigen::Vector2d& xy = emitters_xy[e];

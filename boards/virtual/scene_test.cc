@@ -37,8 +37,9 @@ TEST(SceneTest, DefaultsAreTheCabinetForPeople) {
   EXPECT_EQ(scene.cameras[0].camera.intrinsics.fx, 1150.0);
   EXPECT_NEAR(scene.cameras[0].camera.CenterInWorld().z(), 2400.0, 1e-9);
   EXPECT_NEAR(scene.cameras[1].camera.CenterInWorld().z(), 1350.0, 1e-9);
-  EXPECT_EQ(scene.lasers.emitters_xy.size(), 3u);
+  EXPECT_EQ(scene.lasers.emitters_xy.size(), 4u);
   EXPECT_EQ(scene.lasers.power, 2.0);
+  EXPECT_EQ(scene.lasers.fan_deg, 90.0);
   EXPECT_EQ(scene.frames, 350);  // the top laser to 2100 mm
   EXPECT_EQ(scene.mirrors[0].width, 1000.0);
   EXPECT_EQ(scene.mirrors[0].height, 2100.0);
@@ -74,6 +75,8 @@ TEST(SceneTest, BadValuesGiveOneErrorNamingTheKey) {
   EXPECT_EQ(ErrorOf(R"({"mirrors": {"angle_deg": "wide"}})"),
             "scene.json: mirrors.angle_deg: expected a number");
   EXPECT_EQ(ErrorOf(R"({"seed": 1.5})"), "scene.json: seed: expected a whole number");
+  EXPECT_EQ(ErrorOf(R"({"lasers": {"fan_deg": 0}})"),
+            "scene.json: lasers.fan_deg: must be in [1, 360], got 0");
   EXPECT_EQ(ErrorOf(R"({"cameras": []})"), "scene.json: cameras: expected one or two cameras");
   EXPECT_NE(ErrorOf(R"({"subject": {"type": "dragon"}})").find("subject.type"), std::string::npos);
   EXPECT_NE(ErrorOf(R"({"target": {"yaw_deg": "x"}})").find("target.yaw_deg"), std::string::npos);
@@ -110,10 +113,9 @@ TEST(SceneTest, ShippedScenesLoad) {
 }
 
 TEST(SceneTest, MirrorBumpTiltsTheNormalSmoothly) {
-  Scene scene =
-      Scene::Parse(nlohmann::json{{"mirrors", {{"right_bump_mm", 2.0}}},
-                                  {"lasers", {{"emitter_mm", {0, -900}}}}},
-                   "scene.json", ".");
+  Scene scene = Scene::Parse(nlohmann::json{{"mirrors", {{"right_bump_mm", 2.0}}},
+                                            {"lasers", {{"emitter_mm", {0, -900}}}}},
+                             "scene.json", ".");
   const Mirror& m = scene.mirrors[1];
   // Flat at the centre, tilted towards the edges, zero displacement on the rim.
   EXPECT_LT((m.SurfaceNormal({m.width / 2, m.height / 2}) - m.plane.normal).norm(), 1e-12);

@@ -73,7 +73,8 @@ const Sweep& MannequinSweep() {
 const Sweep& PersonInCabinetG() {
   static const Sweep sweep = RenderSweep(nlohmann::json::parse(R"({
         "lasers": {"count": 3, "spacing_mm": 200, "start_mm": -50, "speed_mm_s": 150,
-                   "emitters_mm": [[0, -900], [-600, -600], [600, -600]], "power": 2},
+                   "emitters_mm": [[0, -900], [-600, -600], [600, -600]], "power": 2,
+                   "fan_deg": 360},
         "mirrors": {"width_mm": 1000, "bottom_mm": 0, "height_mm": 2100, "corner_y_mm": 900},
         "frames": 350,
         "cameras": [

@@ -54,7 +54,7 @@ const Sweep& MannequinSweep();
 
 // A person in cabinet G (docs/cabinet-design.md: three emitters per laser level, mirrors
 // 1000 mm wide from the floor to 2100 mm with their corner 900 mm behind the subject, the
-// upper camera at 2400 mm, f 1250 px, lasers of twice the power), set here in full rather
+// upper camera at 2400 mm, f 1250 px, lasers of twice the power lighting their whole sheet), set here in full rather
 // than left to the scene defaults: the population's f12 (1.90 m, heavy, arms at 35°),
 // frames 120–220, where the lower camera sees the arms' silhouettes run along the mirrors'
 // stripes, the upper camera the hands at z 800–1000 in the mirrors (outside the core) and the
