@@ -49,6 +49,7 @@ PeakTable ReadPeaks(const ScanArchive& archive, int threads, ReconstructSummary*
           out->u = p.u;
           out->v = p.v;
           out->score = p.score;
+          out->intensity = p.intensity;
           ++out;
         }
         std::sort(first, last, [](const PeakState& a, const PeakState& b) {

@@ -21,6 +21,7 @@ struct PeakState {
   uint16_t u = 0;
   float v = 0;
   float score = 0;
+  float intensity = 0;  // DN above the local background
   uint32_t first_hypothesis = 0;
   uint8_t hypotheses = 0;
   uint8_t region = 0;   // the calibration view region: 0 centre, 1 left, 2 right

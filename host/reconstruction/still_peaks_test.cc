@@ -1,5 +1,6 @@
 #include "host/reconstruction/still_peaks.h"
 
+#include <cmath>
 #include <cstdio>
 #include <random>
 
@@ -61,6 +62,67 @@ TEST(StillPeaks, TheAmbientEdgeIsStillTheLaserLinesMove) {
   EXPECT_EQ(edge_still, edge);
   EXPECT_EQ(moving_still, 0u);
   EXPECT_EQ(other_camera_still, 0u);
+  EXPECT_EQ(marked, edge);
+}
+
+// One camera, 120 frames. A dim edge (12 DN) at row 150.2 found in a quarter of the frames
+// at random; a bright line (200 DN) moving 3 px a frame that
+// crosses the edge's row every 40 frames, as three lasers cross one surface point; and a dim
+// line (14 DN) moving 2 px a frame, like a dark surface lit at a grazing angle. The edge's
+// peaks are still; the lines', the bright one's on the edge's row too, are not.
+TEST(StillPeaks, AnEdgeFoundNowAndThenIsStillTheLinesCrossingItAreNot) {
+  ScanArchive archive;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> chance(0.0f, 1.0f);
+  constexpr int kFrames = 120;
+  size_t edge = 0;
+  for (int f = 0; f < kFrames; ++f) {
+    FrameRecord frame;
+    frame.lasers_on = true;
+    frame.sequence = static_cast<uint32_t>(f);
+    frame.timestamp_ns = static_cast<int64_t>(f) * 33'333'333;
+    const bool edge_found = chance(rng) < 0.25f;
+    for (uint16_t u = 100; u < 120; ++u) {
+      Peak bright, dim;
+      bright.u = dim.u = u;
+      bright.v = 150.2f + 3.0f * static_cast<float>(f % 40 - 20);
+      bright.intensity = 200;
+      dim.v = 400.0f + 2.0f * static_cast<float>(f);
+      dim.intensity = 14;
+      frame.peaks.push_back(bright);
+      frame.peaks.push_back(dim);
+      // The bright line's own peak stands for the edge's where both are on the row.
+      if (edge_found && f % 40 != 20) {
+        Peak p;
+        p.u = u;
+        p.v = 150.2f;
+        p.intensity = 12;
+        frame.peaks.push_back(p);
+        ++edge;
+      }
+    }
+    archive.frames.push_back(frame);
+  }
+  ReconstructSummary summary;
+  PeakTable table = ReadPeaks(archive, 2, &summary);
+  const size_t marked = MarkStillPeaks(2, &table);
+  size_t edge_still = 0, lines_still = 0, crossing = 0, crossing_still = 0;
+  for (const PeakState& p : table.peaks) {
+    if (p.intensity == 12) {
+      edge_still += p.still;
+    } else {
+      lines_still += p.still;
+      if (std::abs(p.v - 150.2f) < 0.01f) {
+        ++crossing;
+        crossing_still += p.still;
+      }
+    }
+  }
+  std::printf("%zu marked: the edge %zu of %zu, the lines %zu (on the edge's row %zu of %zu)\n",
+              marked, edge_still, edge, lines_still, crossing_still, crossing);
+  EXPECT_EQ(edge_still, edge);
+  EXPECT_EQ(crossing, 3u * 20u);
+  EXPECT_EQ(lines_still, 0u);
   EXPECT_EQ(marked, edge);
 }
 
