@@ -128,7 +128,7 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--cylinder-core-radius", o->core_radius_mm,
                   "Its core, mm: one hypothesis there decides a peak alone (default 450)")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 20)");
+  cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 10)");
   cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
   cmd->add_option("--min-angle", o->min_angle_deg,
                   "Drop points whose ray meets the laser plane flatter than this, degrees "
