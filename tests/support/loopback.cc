@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <cstdlib>
+#include <random>
 #include <stdexcept>
 
 namespace mirrorscan::test_support {
@@ -22,15 +23,22 @@ sockaddr_in LoopbackAddress(int port) {
 }  // namespace
 
 int FreeLoopbackPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) throw std::runtime_error("FreeLoopbackPort: socket failed");
-  sockaddr_in addr = LoopbackAddress(0);
-  socklen_t length = sizeof(addr);
-  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) == 0 &&
-                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &length) == 0;
-  ::close(fd);
-  if (!ok) throw std::runtime_error("FreeLoopbackPort: no port");
-  return ntohs(addr.sin_port);
+  // Below Linux's ephemeral range (32768-60999 by default): a port the kernel picked with
+  // bind(0) can be handed out again as another test's outgoing connection's source port
+  // before the server under test listens on it ("address in use", seen under ctest -j).
+  std::random_device seed;
+  std::mt19937 rng(seed());
+  std::uniform_int_distribution<int> pick(20000, 32767);
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    if (fd < 0) throw std::runtime_error("FreeLoopbackPort: socket failed");
+    const int port = pick(rng);
+    const sockaddr_in addr = LoopbackAddress(port);
+    const bool free = ::bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) == 0;
+    ::close(fd);
+    if (free) return port;
+  }
+  throw std::runtime_error("FreeLoopbackPort: no free port in 20000-32767");
 }
 
 int ConnectLoopback(int port, const char* source, std::chrono::milliseconds timeout) {
