@@ -18,7 +18,7 @@ namespace mirrorscan::reconstruction {
 // The slowest laser line moves about 1.3 px a frame (5 mm seen through a mirror from 3.7 m
 // at f 1150 px), so kStillPx leaves it moving while an edge's sub-pixel jitter stays inside.
 //
-// An edge barely above the threshold is found only now and then, never in three frames of
+// An edge barely above the threshold is found only now and then, seldom in three frames of
 // eight, yet at the same row all through the sweep (f02's bust edges at 10 DN: 3,900 peaks
 // in 5–30 % of the frames, 653 of its 737 cloud points beyond 5 mm). A surface point is
 // crossed once by each laser, in one or two frames each, so a row of a column holds a few
