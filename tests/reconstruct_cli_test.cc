@@ -23,13 +23,15 @@ Result RunMirrorscan(const std::string& arguments, const fs::path& dir) {
   return test_support::RunCommand(Mirrorscan() + " " + arguments, dir / "stderr.txt");
 }
 
-// The first 60 frames of the mannequin sweep (the legs), made once.
+// The first 120 frames of the mannequin sweep (the legs to the hips), made once: over a
+// stretch of 60 the lower camera's view of the shins at its end stays undecided (3,894
+// ambiguous peaks against 2 over 120).
 const fs::path& Sweep() {
   static const fs::path dir = [] {
     const fs::path d = test_support::FreshTempDir("mirrorscan_reconstruct_cli_test");
     const Result r =
         RunMirrorscan("sim scan --scene " + std::string(MIRRORSCAN_SOURCE_DIR) +
-                          "/boards/virtual/scenes/mannequin.json --frames 60 --no-images "
+                          "/boards/virtual/scenes/mannequin.json --frames 120 --no-images "
                           "--peaks " +
                           (d / "scan.mscan").string() + " --out " + (d / "sim").string(),
                       d);
@@ -49,11 +51,9 @@ TEST(ReconstructCli, WritesThePlyAndTheSummary) {
   const nlohmann::json summary = nlohmann::json::parse(r.out);
   EXPECT_GT(summary["points"].get<size_t>(), 10000u);
   EXPECT_EQ(summary["laser_height"]["source"], "panels");
-  // 3,894 ambiguous and 1,137 conflicts for 56,813 points with the 850 mm cylinder, which
-  // holds hypotheses out to the mirrors (1,804 and 1,113 for 58,949 with 650 mm).
   EXPECT_LT(
       summary["dropped"]["ambiguous"].get<size_t>() + summary["dropped"]["conflict"].get<size_t>(),
-      summary["points"].get<size_t>() / 10)
+      summary["points"].get<size_t>() / 30)
       << summary.dump(2);
   std::string header = test_support::ReadFile(d / "points.ply");
   header.resize(header.find("end_header"));
