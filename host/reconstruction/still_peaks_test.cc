@@ -66,10 +66,10 @@ TEST(StillPeaks, TheAmbientEdgeIsStillTheLaserLinesMove) {
 }
 
 // One camera, 120 frames. A dim edge (12 DN) at row 150.2 found in a quarter of the frames
-// at random; a bright line (200 DN) moving 3 px a frame that
-// crosses the edge's row every 40 frames, as three lasers cross one surface point; and a dim
-// line (14 DN) moving 2 px a frame, like a dark surface lit at a grazing angle. The edge's
-// peaks are still; the lines', the bright one's on the edge's row too, are not.
+// at random; a bright line (200 DN) moving 3 px a frame that crosses the edge's row every 40
+// frames, as three lasers cross one surface point; and a dim line (14 DN) moving 2 px a
+// frame, like a dark surface lit at a grazing angle. The edge's peaks are still; the
+// lines', the bright one's on the edge's row too, are not.
 TEST(StillPeaks, AnEdgeFoundNowAndThenIsStillTheLinesCrossingItAreNot) {
   ScanArchive archive;
   std::mt19937 rng(5);
