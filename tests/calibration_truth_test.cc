@@ -114,10 +114,11 @@ TEST(CalibrationTruth, TwoCamerasWithTheirLensesHoldOverWholeSweeps) {
   for (const auto& c : result.cameras) EXPECT_GE(c.coverage.fraction, 0.85) << c.name;
   test_support::ExpectParametersMatchTruth(*result.calibration, Truth());
   for (const Sweep& sweep : Sweeps())
-    // Measured up to 0.242 mm RMS, 1.37 mm max: the lower camera's centre view, whose rays
-    // at the top of its image meet the laser planes at 5-10° in the cabinet for people
-    // (0.074 / 0.254 mm in the mannequin's cabinet, f 1400 px, its image ending lower).
-    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.27, 1.5);
+    // Measured up to 0.289 mm RMS, 1.92 mm max: the lower camera's centre view, whose rays
+    // at the top of its image meet the laser planes at 3-10° in the cabinet for people
+    // (0.242 / 1.37 mm from 5°; 0.074 / 0.254 mm in the mannequin's cabinet, f 1400 px,
+    // its image ending lower).
+    ExpectWithinBounds(Compare(*result.calibration, sweep), sweep.name, 0.32, 2.1);
 }
 
 TEST(CalibrationTruth, OneCameraWithItsLensHoldsOverWholeSweeps) {

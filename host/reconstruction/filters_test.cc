@@ -41,8 +41,8 @@ TEST(Filters, FiltersAreSwitchable) {
   // (what it dropped are the outlier test's points, counted as outliers).
   EXPECT_EQ(sure.summary.dropped_off_surface, 0u);
   const auto judged = [](const ReconstructSummary& s) {
-    return s.points + s.dropped_low_confidence + s.dropped_off_surface + s.dropped_outlier +
-           s.dropped_outside;
+    return s.points + s.dropped_low_confidence + s.dropped_off_surface +
+           s.dropped_flat_off_surface + s.dropped_outlier + s.dropped_outside;
   };
   EXPECT_EQ(judged(sure.summary), judged(filtered.summary));
   for (const CloudPoint& p : sure.cloud.points) ASSERT_GE(p.confidence, 0.15f);

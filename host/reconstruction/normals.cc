@@ -18,13 +18,12 @@ constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
 
 PointCloud PointsWithNormals(const ScanArchive& archive, const PeakTable& table, const Grid& grid,
                              const FilteredGrid& filtered, const ReconstructOptions& options,
-                             int threads, std::vector<uint8_t>* suspect,
-                             ReconstructSummary* summary) {
+                             int threads, PointNotes* notes, ReconstructSummary* summary) {
   PointCloud cloud;
   // Each chunk of grid points into its own list, joined in order.
   struct CloudChunk {
     std::vector<CloudPoint> points;
-    std::vector<uint8_t> suspect;
+    PointNotes notes;
     size_t low_confidence = 0;
   };
   std::vector<CloudChunk> cloud_chunks(ChunkCount(grid.points.size(), threads));
@@ -81,12 +80,16 @@ PointCloud PointsWithNormals(const ScanArchive& archive, const PeakTable& table,
         continue;
       }
       out.points.push_back(cp);
-      out.suspect.push_back(gp.suspect);
+      out.notes.suspect.push_back(gp.suspect);
+      out.notes.sin_angle.push_back(static_cast<float>(gp.sin_angle));
     }
   });
   for (CloudChunk& chunk : cloud_chunks) {
     cloud.points.insert(cloud.points.end(), chunk.points.begin(), chunk.points.end());
-    suspect->insert(suspect->end(), chunk.suspect.begin(), chunk.suspect.end());
+    notes->suspect.insert(notes->suspect.end(), chunk.notes.suspect.begin(),
+                          chunk.notes.suspect.end());
+    notes->sin_angle.insert(notes->sin_angle.end(), chunk.notes.sin_angle.begin(),
+                            chunk.notes.sin_angle.end());
     summary->dropped_low_confidence += chunk.low_confidence;
   }
   return cloud;

@@ -19,10 +19,13 @@ namespace mirrorscan::reconstruction {
 // stripe's direction known, the normal orthogonal to it closest to the ray) and its
 // confidence (peak score × the ray's angle to the plane × the distance to the stripe's
 // end). Points under options.min_confidence are dropped (dropped.low_confidence);
-// `suspect` gets, per point, whether the outlier test flagged it.
+// `notes` gets, per point, what the surface check needs.
+struct PointNotes {
+  std::vector<uint8_t> suspect;  // the outlier test flagged it
+  std::vector<float> sin_angle;  // of its ray to its laser plane
+};
 PointCloud PointsWithNormals(const ScanArchive& archive, const PeakTable& table, const Grid& grid,
                              const FilteredGrid& filtered, const ReconstructOptions& options,
-                             int threads, std::vector<uint8_t>* suspect,
-                             ReconstructSummary* summary);
+                             int threads, PointNotes* notes, ReconstructSummary* summary);
 
 }  // namespace mirrorscan::reconstruction

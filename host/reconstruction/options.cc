@@ -49,6 +49,9 @@ void ReconstructOptions::Validate() const {
   Require(surface_check_max_mm >= 0, "surface_check_max_mm", surface_check_max_mm, "0 or more");
   Require(surface_check_outlier_mm >= 0, "surface_check_outlier_mm", surface_check_outlier_mm,
           "0 or more");
+  Require(flat_check_deg >= 0 && flat_check_deg < 90, "flat_check_deg", flat_check_deg,
+          "in [0, 90)");
+  Require(flat_check_ratio >= 1, "flat_check_ratio", flat_check_ratio, "1 or more");
   Require(threads >= 0, "threads", threads, "0 (every core) or more");
 }
 

@@ -119,14 +119,15 @@ Reconstruction Reconstruct(const ScanArchive& archive, const Calibration& calibr
       FilterGrid(archive, t.table, t.geometry.cameras.size(), options, threads, &grid, &summary);
   timer.Lap("filtering");
   timer.Start("normals");
-  std::vector<uint8_t> suspect;
+  PointNotes notes;
   result.cloud =
-      PointsWithNormals(archive, t.table, grid, filtered, options, threads, &suspect, &summary);
+      PointsWithNormals(archive, t.table, grid, filtered, options, threads, &notes, &summary);
   timer.Lap("normals");
   if (options.surface_check) {
-    const SurfaceDrops drops = DropOffSurface(options, threads, suspect, &result.cloud.points);
+    const SurfaceDrops drops = DropOffSurface(options, threads, notes, &result.cloud.points);
     summary.dropped_off_surface = drops.weak;
     summary.dropped_outlier += drops.suspect;
+    summary.dropped_flat_off_surface = drops.flat;
     timer.Lap("surface check");
   }
   CountPoints(result.cloud, t.geometry.cameras.size(), t.planes.count, &summary);

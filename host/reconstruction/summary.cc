@@ -65,6 +65,7 @@ nlohmann::json SummaryJson(const ReconstructSummary& s) {
             {"stripe_end", s.dropped_stripe_end},
             {"low_confidence", s.dropped_low_confidence},
             {"off_surface", s.dropped_off_surface},
+            {"flat_off_surface", s.dropped_flat_off_surface},
             {"outlier", s.dropped_outlier}}},
           {"double_bounce", s.double_bounce},
           {"laser_height",
@@ -105,11 +106,11 @@ std::string SummaryText(const ReconstructSummary& s) {
   text += Format(
       "  dropped: panel %zu, no ray %zu, still %zu, outside volume %zu, floor %zu, ambiguous %zu, "
       "conflict %zu, unsupported %zu, seen through %zu, flat angle %zu, other camera better %zu, "
-      "stripe end %zu, outlier %zu, low confidence %zu, off surface %zu\n",
+      "stripe end %zu, outlier %zu, low confidence %zu, off surface %zu, flat off surface %zu\n",
       s.dropped_panel, s.dropped_no_ray, s.dropped_still, s.dropped_outside, s.dropped_floor,
       s.dropped_ambiguous, s.dropped_conflict, s.dropped_unsupported, s.dropped_seen_through,
       s.dropped_flat_angle, s.dropped_other_camera, s.dropped_stripe_end, s.dropped_outlier,
-      s.dropped_low_confidence, s.dropped_off_surface);
+      s.dropped_low_confidence, s.dropped_off_surface, s.dropped_flat_off_surface);
   const LaserHeightSummary& l = s.laser_height;
   text += Format("  laser heights from %s", l.source.c_str());
   if (l.source == "panels") {

@@ -72,6 +72,8 @@ struct ReconstructSummary {
   size_t dropped_outlier = 0;  // off its (column, frame) neighbours and not on the surface
   size_t dropped_low_confidence = 0;
   size_t dropped_off_surface = 0;  // a weak point the confident ones around it do not carry
+  // A flat ray's point off the surface another camera sees more squarely.
+  size_t dropped_flat_off_surface = 0;
   size_t double_bounce = 0;        // triangulated through both mirrors
   size_t points = 0;
   std::vector<size_t> points_per_camera;  // by FrameRecord::camera

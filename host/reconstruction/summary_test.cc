@@ -21,6 +21,7 @@ TEST(Summary, NamesEveryCountAsTheDocsDo) {
   s.dropped_outside = 11;
   s.dropped_seen_through = 12;
   s.dropped_off_surface = 13;
+  s.dropped_flat_off_surface = 14;
   s.points_per_camera = {20, 1};
   s.points_per_view = {10, 5, 4, 1, 1};
   s.points_per_laser = {21};
@@ -36,6 +37,7 @@ TEST(Summary, NamesEveryCountAsTheDocsDo) {
   EXPECT_EQ(json["dropped"]["outside_volume"], 11);
   EXPECT_EQ(json["dropped"]["seen_through"], 12);
   EXPECT_EQ(json["dropped"]["off_surface"], 13);
+  EXPECT_EQ(json["dropped"]["flat_off_surface"], 14);
   EXPECT_EQ(json["points_per_view"]["right-left"], 1);
   EXPECT_EQ(json["points_per_camera"][1], 1);
   EXPECT_EQ(json["laser_height"]["source"], "readback");
@@ -46,6 +48,7 @@ TEST(Summary, NamesEveryCountAsTheDocsDo) {
   EXPECT_NE(text.find("decided by stereo 5, cylinder 6, volume 7, column count 8, label vote 9"),
             std::string::npos)
       << text;
+  EXPECT_NE(text.find("off surface 13, flat off surface 14"), std::string::npos) << text;
   EXPECT_NE(text.find("laser heights from readback (panels not used (option))"), std::string::npos)
       << text;
   EXPECT_NE(text.find("warning: something to say"), std::string::npos) << text;

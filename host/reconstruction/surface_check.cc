@@ -13,12 +13,58 @@
 
 namespace mirrorscan::reconstruction {
 
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr int kMinNeighbours = 6;
+// Normals within 60° of each other: one surface (a box's faces meet at 90°).
+const double kSameSurfaceCos = std::cos(60.0 * kDegToRad);
+
+// A confident point as a judge: where it is, which camera saw it, how squarely.
+struct Judge {
+  Eigen::Vector3f point;
+  uint8_t camera;
+  float sin_angle;
+};
+
+// The plane of neighbours accumulated one by one: the point's distance from it and the
+// neighbours' RMS about it.
+class PlaneFit {
+ public:
+  void Add(const Eigen::Vector3d& q) {
+    sum_ += q;
+    outer_ += q * q.transpose();
+    ++n_;
+  }
+  int count() const { return n_; }
+  // The neighbours were added relative to the point judged: the point is the origin.
+  void Fit(double* off, double* rms, Eigen::Vector3d* normal = nullptr) const {
+    const Eigen::Vector3d mean = sum_ / n_;
+    const Eigen::Matrix3d covariance = outer_ / n_ - mean * mean.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
+    *rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
+    *off = std::abs(solver.eigenvectors().col(0).dot(-mean));
+    if (normal) *normal = solver.eigenvectors().col(0);
+  }
+
+ private:
+  Eigen::Vector3d sum_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer_ = Eigen::Matrix3d::Zero();
+  int n_ = 0;
+};
+
+enum Drop : uint8_t { kKeep = 0, kWeak, kSuspect, kFlat };
+
+}  // namespace
+
 SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
-                            const std::vector<uint8_t>& suspect, std::vector<CloudPoint>* points) {
+                            const PointNotes& notes, std::vector<CloudPoint>* points) {
+  const std::vector<uint8_t>& suspect = notes.suspect;
   const double radius = options.surface_check_radius_mm;
   const float threshold = static_cast<float>(options.surface_check_confidence);
+  const float flat_sin = static_cast<float>(std::sin(options.flat_check_deg * kDegToRad));
   const VoxelBox box(options.cylinder, radius);
-  // Each confident point's cell; the points' places then by cell, side by side in memory.
+  // Each confident point's cell; the points then by cell, side by side in memory.
   constexpr uint32_t kNone = std::numeric_limits<uint32_t>::max();
   std::vector<uint32_t> cell_of(points->size(), kNone);
   ParallelFor(points->size(), threads, [&](size_t begin, size_t end) {
@@ -33,56 +79,74 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
   for (const uint32_t cell : cell_of)
     if (cell != kNone) ++start[cell + 1];
   std::partial_sum(start.begin(), start.end(), start.begin());
-  std::vector<Eigen::Vector3f> by_cell(start[box.Voxels()]);
+  std::vector<Judge> by_cell(start[box.Voxels()]);
   {
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
     for (size_t i = 0; i < points->size(); ++i)
-      if (cell_of[i] != kNone) by_cell[fill[cell_of[i]]++] = (*points)[i].point_in_world;
+      if (cell_of[i] != kNone)
+        by_cell[fill[cell_of[i]]++] = {(*points)[i].point_in_world, (*points)[i].camera,
+                                       notes.sin_angle[i]};
   }
-  constexpr int kMinNeighbours = 6;
   const double radius2 = radius * radius;
-  std::vector<uint8_t> drop(points->size(), 0);
+  std::vector<uint8_t> drop(points->size(), kKeep);
   ParallelFor(points->size(), threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       const CloudPoint& cp = (*points)[i];
-      if (cp.confidence >= threshold && !suspect[i]) continue;
+      const bool weak = cp.confidence < threshold;
+      const bool flat = notes.sin_angle[i] < flat_sin;
+      if (!weak && !suspect[i] && !flat) continue;
       const Eigen::Vector3d at = cp.point_in_world.cast<double>();
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
-      int n = 0;
+      // All confident neighbours; and those another camera saw more squarely.
+      PlaneFit all, squarer;
+      const float squarer_sin = static_cast<float>(options.flat_check_ratio) * notes.sin_angle[i];
       box.ForNeighbourhood(at, [&](size_t cell) {
         for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
-          const Eigen::Vector3d q = by_cell[k].cast<double>() - at;
+          const Judge& judge = by_cell[k];
+          const Eigen::Vector3d q = judge.point.cast<double>() - at;
           if (q.squaredNorm() > radius2) continue;
-          sum += q;
-          outer += q * q.transpose();
-          ++n;
+          all.Add(q);
+          if (flat && judge.camera != cp.camera && judge.sin_angle >= squarer_sin) squarer.Add(q);
         }
       });
+      double off = 0, rms = 0;
+      // A ray flat to its plane puts the peak's error along itself, many times over (the
+      // lower camera's top rows: f01's points beyond 5 mm, 0.5-0.8 px off where the line
+      // ends at a silhouette): where another camera sees the surface more squarely, its
+      // points say where the surface is. Only the same surface judges: near an edge the
+      // other camera may see the other face alone (the point's normal then disagrees).
+      if (flat && squarer.count() >= kMinNeighbours) {
+        Eigen::Vector3d normal;
+        squarer.Fit(&off, &rms, &normal);
+        if (std::abs(normal.dot(cp.normal.cast<double>())) >= kSameSurfaceCos &&
+            off > options.surface_check_max_mm && off > 3.0 * rms) {
+          drop[i] = kFlat;
+          continue;
+        }
+      }
+      if (!weak && !suspect[i]) continue;
       // A suspect needs the surface's word: isolated phantoms have none.
-      if (n < kMinNeighbours) {
-        drop[i] =
-            suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote;
+      if (all.count() < kMinNeighbours) {
+        if (suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote)
+          drop[i] = suspect[i] ? kSuspect : kWeak;
         continue;
       }
-      const Eigen::Vector3d mean = sum / n;
-      const Eigen::Matrix3d covariance = outer / n - mean * mean.transpose();
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
-      const double rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
-      const double off = std::abs(solver.eigenvectors().col(0).dot(-mean));
+      all.Fit(&off, &rms);
       // A suspect is already off its neighbours: where the plane says nothing (an edge, a
       // fold) it is not given the benefit of the doubt that a weak point gets.
-      drop[i] = suspect[i] ? off > options.surface_check_outlier_mm
-                           : off > options.surface_check_max_mm && off > 3.0 * rms;
+      if (suspect[i] ? off > options.surface_check_outlier_mm
+                     : off > options.surface_check_max_mm && off > 3.0 * rms)
+        drop[i] = suspect[i] ? kSuspect : kWeak;
     }
   });
   SurfaceDrops drops;
   size_t kept = 0;
   for (size_t i = 0; i < points->size(); ++i) {
-    if (!drop[i])
-      (*points)[kept++] = (*points)[i];
-    else
-      ++(suspect[i] ? drops.suspect : drops.weak);
+    switch (drop[i]) {
+      case kKeep: (*points)[kept++] = (*points)[i]; break;
+      case kWeak: ++drops.weak; break;
+      case kSuspect: ++drops.suspect; break;
+      case kFlat: ++drops.flat; break;
+    }
   }
   points->resize(kept);
   return drops;

@@ -16,8 +16,8 @@ TEST(SurfaceCheck, KeepsTheSuspectsTheSurfaceCarriesAndDropsPointsOffIt) {
   const Sweep& sweep = CuboidSweep();
   const Reconstruction filtered = Reconstruct(sweep.archive, sweep.calibration);
   const auto judged = [](const ReconstructSummary& s) {
-    return s.points + s.dropped_low_confidence + s.dropped_off_surface + s.dropped_outlier +
-           s.dropped_outside;
+    return s.points + s.dropped_low_confidence + s.dropped_off_surface +
+           s.dropped_flat_off_surface + s.dropped_outlier + s.dropped_outside;
   };
   ReconstructOptions unchecked;
   unchecked.surface_check = false;
@@ -40,6 +40,52 @@ TEST(SurfaceCheck, KeepsTheSuspectsTheSurfaceCarriesAndDropsPointsOffIt) {
   // What it drops are points off the box, not its faces' points.
   EXPECT_LE(checked_score.max_mm, unchecked_score.max_mm);
   EXPECT_LT(filtered.summary.dropped_off_surface, filtered.summary.points / 100);
+}
+
+// A camera's flat rays are judged by the surface another camera sees more squarely: off
+// it they go, on it they stay, where the other camera does not look they stay, and the
+// other face of an edge (the other camera sees only this one) is not judged by it.
+TEST(SurfaceCheck, AFlatRaysPointOffTheSurfaceASquarerCameraSeesIsDropped) {
+  std::vector<CloudPoint> points;
+  PointNotes notes;
+  auto add = [&](const Eigen::Vector3f& at, const Eigen::Vector3f& normal, uint8_t camera,
+                 float sin_angle) {
+    CloudPoint p;
+    p.point_in_world = at;
+    p.normal = normal;
+    p.camera = camera;
+    p.confidence = 0.9f;
+    points.push_back(p);
+    notes.suspect.push_back(0);
+    notes.sin_angle.push_back(sin_angle);
+  };
+  const Eigen::Vector3f front(0, -1, 0), side(1, 0, 0);
+  // Camera 0 sees the face y = 0 squarely (x -50..50, z 1000..1100).
+  for (float x = -50; x <= 50; x += 2)
+    for (float z = 1000; z <= 1100; z += 2) add({x, 0, z}, front, 0, 0.5f);
+  const size_t judged = points.size();
+  // Camera 1's flat rays (about 6°): on the face, 6 mm behind it, on the face beside the
+  // edge at x = 50 that camera 0 does not see, and 6 mm off where camera 0 does not look.
+  size_t on = 0, off = 0, other_face = 0, alone = 0;
+  for (float z = 1011; z <= 1089; z += 4) {
+    for (float x = -41; x <= 41; x += 8, ++on) add({x, 0.5f, z}, front, 1, 0.1f);
+    for (float x = -37; x <= 37; x += 8, ++off) add({x, 6, z}, front, 1, 0.1f);
+    for (float y = 3; y <= 15; y += 4, ++other_face) add({50, y, z}, side, 1, 0.1f);
+    for (float x = 301; x <= 341; x += 8, ++alone) add({x, 6, z}, front, 1, 0.1f);
+  }
+  std::vector<CloudPoint> again = points;
+  ReconstructOptions options;
+  const SurfaceDrops drops = DropOffSurface(options, 1, notes, &points);
+  EXPECT_EQ(drops.flat, off);
+  EXPECT_EQ(drops.weak + drops.suspect, 0u);
+  size_t behind = 0;
+  for (const CloudPoint& p : points)
+    if (p.camera == 1 && p.point_in_world.y() > 5 && p.point_in_world.x() < 45) ++behind;
+  EXPECT_EQ(behind, 0u);
+  EXPECT_EQ(points.size(), judged + on + other_face + alone);
+  // Rays of 5.7° are not judged with the check at 5°.
+  options.flat_check_deg = 5.0;
+  EXPECT_EQ(DropOffSurface(options, 1, notes, &again).flat, 0u);
 }
 
 }  // namespace

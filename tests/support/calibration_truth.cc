@@ -35,7 +35,7 @@ namespace {
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 // The reconstruction's default --min-angle (host/reconstruction/options.h).
-constexpr double kMinRayPlaneAngleDeg = 5.0;
+constexpr double kMinRayPlaneAngleDeg = 3.0;
 
 struct Errors {
   std::vector<double> px, mm, outer_px;
