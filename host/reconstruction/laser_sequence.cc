@@ -44,6 +44,15 @@ uint32_t SequenceAllows(const Hypothesis* first, int count) {
   return allowed;
 }
 
+bool SequenceRefutes(const Hypothesis* first, int count, int h) {
+  if (first[h].sequence_missing == 0) return false;
+  const int view = first[h].key / kMaxLasers;
+  return std::any_of(first, first + count, [&](const Hypothesis& x) {
+    return !x.Background() && x.sequence_missing == 0 &&
+           (x.key / kMaxLasers == view || x.sequence_seen > 0);
+  });
+}
+
 void MarkLaserSequence(const PeakTable& table, const LaserPlanes& planes, int threads,
                        Hypotheses* hyp) {
   if (planes.count < 2) return;

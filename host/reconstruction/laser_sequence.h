@@ -27,4 +27,11 @@ void MarkLaserSequence(const PeakTable& table, const LaserPlanes& planes, int th
 // the panels are always allowed (their lasers' sequence is not the subject's).
 uint32_t SequenceAllows(const Hypothesis* first, int count);
 
+// Whether the sequence speaks against hypothesis h outright, for the rules that decide from
+// a stripe or a column rather than from the peak's own evidence (the count, the vote):
+// other lasers would have lit its point and the pixel saw nothing, while another hypothesis
+// of the peak has no such word against it and is of the same view or was seen by another
+// laser (a hand seen directly, its lasers lit it at their moments, is no mirror's stripe).
+bool SequenceRefutes(const Hypothesis* first, int count, int h);
+
 }  // namespace mirrorscan::reconstruction

@@ -57,8 +57,8 @@ enum Drop : uint8_t { kKeep = 0, kWeak, kSuspect, kFlat };
 
 }  // namespace
 
-SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
-                            const PointNotes& notes, std::vector<CloudPoint>* points) {
+SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, const PointNotes& notes,
+                            std::vector<CloudPoint>* points) {
   const std::vector<uint8_t>& suspect = notes.suspect;
   const double radius = options.surface_check_radius_mm;
   const float threshold = static_cast<float>(options.surface_check_confidence);
@@ -142,10 +142,18 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
   size_t kept = 0;
   for (size_t i = 0; i < points->size(); ++i) {
     switch (drop[i]) {
-      case kKeep: (*points)[kept++] = (*points)[i]; break;
-      case kWeak: ++drops.weak; break;
-      case kSuspect: ++drops.suspect; break;
-      case kFlat: ++drops.flat; break;
+      case kKeep:
+        (*points)[kept++] = (*points)[i];
+        break;
+      case kWeak:
+        ++drops.weak;
+        break;
+      case kSuspect:
+        ++drops.suspect;
+        break;
+      case kFlat:
+        ++drops.flat;
+        break;
     }
   }
   points->resize(kept);

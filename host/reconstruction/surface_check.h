@@ -26,7 +26,7 @@ struct SurfaceDrops {
 // are indexed in a grid of
 // cells as large as the radius (counting sort), so a point's neighbours are in its 27 cells.
 // The points left keep their order.
-SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads,
-                            const PointNotes& notes, std::vector<CloudPoint>* points);
+SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, const PointNotes& notes,
+                            std::vector<CloudPoint>* points);
 
 }  // namespace mirrorscan::reconstruction

@@ -61,7 +61,8 @@ void DecideByColumnCount(PeakTable* table, const Hypotheses& hyp, int laser_coun
             const int key = hyp[p.first_hypothesis + pick[r]].key;
             // The laser sequence at the pixel says another laser: the count is not the lasers.
             if (key % kMaxLasers != laser || (view >= 0 && key / kMaxLasers != view) ||
-                !(SequenceAllows(&hyp[p.first_hypothesis], p.hypotheses) >> pick[r] & 1u))
+                !(SequenceAllows(&hyp[p.first_hypothesis], p.hypotheses) >> pick[r] & 1u) ||
+                SequenceRefutes(&hyp[p.first_hypothesis], p.hypotheses, pick[r]))
               agrees = false;
             view = key / kMaxLasers;
           }

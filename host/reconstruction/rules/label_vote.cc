@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "common/parallel/parallel_for.h"
+#include "host/reconstruction/laser_sequence.h"
 #include "host/reconstruction/voxel_box.h"
 
 namespace mirrorscan::reconstruction {
@@ -242,6 +243,13 @@ void DecideByLabelVote(const Hypotheses& hyp, const ReconstructOptions& options,
             key / kMaxLasers == static_cast<int>(PointView::kCenter) &&
             !(decided.At(hyp[p.first_hypothesis + h].point) >> key & 1u)) {
           ++count.unsupported;
+          continue;
+        }
+        // A label carries its key along a stripe that another surface's stripe joins; the
+        // laser sequence at the pixel can still say no (f11's and m08's heels in the
+        // mirrors at the sweep's start, laser 0, taken for laser 1 in the air 200 mm above).
+        if (SequenceRefutes(first, p.hypotheses, h)) {
+          ++count.conflict;
           continue;
         }
         p.chosen = static_cast<int16_t>(h);
