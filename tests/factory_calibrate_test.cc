@@ -148,14 +148,14 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
       test_support::CompareWithTruth(ours, cuboid, test_support::SweepTruth(cuboid, 6));
   std::printf("%s", test_support::FormatAgreement(rows).c_str());
   ASSERT_EQ(rows.size(), 6u);
-  // As calibration_truth_test's bounds: measured up to 0.054 px, 0.274 mm RMS and 1.56 mm
-  // max (the lower camera's centre view, its rays meeting the planes at 5-10° at the top of
-  // its image).
+  // As calibration_truth_test's bounds: measured up to 0.054 px, 0.328 mm RMS and 2.17 mm
+  // max (the lower camera's centre view, its rays meeting the planes at 3-10° at the top of
+  // its image; 0.274 / 1.56 mm from 5°, before the reconstruction kept rays down to 3°).
   for (const auto& row : rows) {
     EXPECT_LE(row.rms_px, 0.06) << row.camera << " " << row.view;
     EXPECT_LE(row.max_px, 0.15) << row.camera << " " << row.view;
-    EXPECT_LE(row.rms_mm, 0.3) << row.camera << " " << row.view;
-    EXPECT_LE(row.max_mm, 1.8) << row.camera << " " << row.view;
+    EXPECT_LE(row.rms_mm, 0.36) << row.camera << " " << row.view;
+    EXPECT_LE(row.max_mm, 2.4) << row.camera << " " << row.view;
   }
   // The laser sweep measured the panels (6 mm behind the mirrors in the scene) through the
   // calibration just made, whose own small errors limit it to a few tenths of a mm; what
