@@ -94,7 +94,8 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
       const CloudPoint& cp = (*points)[i];
       const bool weak = cp.confidence < threshold;
       const bool flat = notes.sin_angle[i] < flat_sin;
-      if (!weak && !suspect[i] && !flat) continue;
+      const bool doubted = weak || suspect[i];
+      if (!doubted && !flat) continue;
       const Eigen::Vector3d at = cp.point_in_world.cast<double>();
       // All confident neighbours; and those another camera saw more squarely.
       PlaneFit all, squarer;
@@ -104,7 +105,7 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
           const Judge& judge = by_cell[k];
           const Eigen::Vector3d q = judge.point.cast<double>() - at;
           if (q.squaredNorm() > radius2) continue;
-          all.Add(q);
+          if (doubted) all.Add(q);
           if (flat && judge.camera != cp.camera && judge.sin_angle >= squarer_sin) squarer.Add(q);
         }
       });
@@ -123,7 +124,7 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
           continue;
         }
       }
-      if (!weak && !suspect[i]) continue;
+      if (!doubted) continue;
       // A suspect needs the surface's word: isolated phantoms have none.
       if (all.count() < kMinNeighbours) {
         if (suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote)
