@@ -252,6 +252,18 @@ def resample(polyline, step=1.0):
     return np.vstack(out)
 
 
+def section_loops(meta, v, t):
+    """Each girth section of the truth, as its loop on the true surface resampled every mm
+    (None where the plane misses the body)."""
+    loops = {}
+    for key, value in meta["truth"].items():
+        section = value.get("section")
+        if section:
+            loop = cut_loop(v, t, section["point"], section["normal"])
+            loops[key] = None if loop is None else resample(loop)
+    return loops
+
+
 def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archive=None):
     """The body's coverage figures: overall and per region (the share of the true surface,
     soles excluded, within 5 mm of the processed mesh), per girth section (the share of its
@@ -278,17 +290,9 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archiv
         for i, name in enumerate(REGIONS):
             sel = region == i
             out["regions"][name] = round(100 * float(seen[sel].mean()), 1) if sel.any() else None
-        out["sections"] = {}
-        for key, value in meta["truth"].items():
-            section = value.get("section")
-            if not section:
-                continue
-            loop = cut_loop(v, t, section["point"], section["normal"])
-            if loop is None:
-                out["sections"][key] = None
-                continue
-            along = resample(loop)
-            out["sections"][key] = round(100 * float(np.mean(mesh_distance(along) < SEEN_MM)), 1)
+        out["sections"] = {key: None if along is None else
+                           round(100 * float(np.mean(mesh_distance(along) < SEEN_MM)), 1)
+                           for key, along in section_loops(meta, v, t).items()}
     if sim_dir:
         # What the optics and the extractor reach: truth peaks on the subject with a peak of
         # the archive within 1 px of their row (scripts/score-reconstruction's matching).
@@ -306,6 +310,11 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archiv
         out["optics_pct"] = round(100 * float(optics.mean()), 1)
         out["optics_regions"] = {name: round(100 * float(optics[region == i].mean()), 1)
                                  if (region == i).any() else None for i, name in enumerate(REGIONS)}
+        out["optics_sections"] = {
+            key: None if along is None else round(100 * float(np.mean(np.asarray(
+                o3d.geometry.PointCloud(o3d.utility.Vector3dVector(along))
+                .compute_point_cloud_distance(lit)) < SEEN_MM)), 1)
+            for key, along in section_loops(meta, v, t).items()}
     if cloud_ply and os.path.exists(cloud_ply):
         cloud_points = read_cloud_xyz(cloud_ply)
         out["points"] = int(len(cloud_points))

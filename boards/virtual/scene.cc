@@ -175,15 +175,19 @@ Scene Scene::Parse(const nlohmann::json& json, const std::string& file_name,
   const nlohmann::json wrapper = {{"cameras", cameras_json}};
   const JsonReader cameras_reader(root.Has("cameras") ? json : wrapper, file_name);
   const auto camera_readers = cameras_reader.Objects("cameras");
-  if (camera_readers.empty() || camera_readers.size() > 2) {
-    root.Fail("cameras", "expected one or two cameras");
+  if (camera_readers.empty() || camera_readers.size() > kMaxCameras) {
+    root.Fail("cameras", "expected one to " + std::to_string(kMaxCameras) + " cameras");
   }
   for (const auto& r : camera_readers) scene.cameras.push_back(ParseCamera(r));
-  if (scene.cameras.size() == 2 && scene.cameras[0].name == scene.cameras[1].name) {
-    root.Fail("cameras", "camera names must differ");
-  }
-  if (scene.cameras.size() == 2 && scene.cameras[0].fps != scene.cameras[1].fps) {
-    root.Fail("cameras", "both cameras must run at the same fps");
+  for (size_t i = 1; i < scene.cameras.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (scene.cameras[i].name == scene.cameras[j].name) {
+        root.Fail("cameras", "camera names must differ");
+      }
+    }
+    if (scene.cameras[i].fps != scene.cameras[0].fps) {
+      root.Fail("cameras", "all cameras must run at the same fps");
+    }
   }
 
   // Mirrors, 120° apart by default, meeting at a vertical corner line behind the subject;

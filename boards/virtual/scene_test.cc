@@ -77,9 +77,35 @@ TEST(SceneTest, BadValuesGiveOneErrorNamingTheKey) {
   EXPECT_EQ(ErrorOf(R"({"seed": 1.5})"), "scene.json: seed: expected a whole number");
   EXPECT_EQ(ErrorOf(R"({"lasers": {"fan_deg": 0}})"),
             "scene.json: lasers.fan_deg: must be in [1, 360], got 0");
-  EXPECT_EQ(ErrorOf(R"({"cameras": []})"), "scene.json: cameras: expected one or two cameras");
+  EXPECT_EQ(ErrorOf(R"({"cameras": []})"), "scene.json: cameras: expected one to 3 cameras");
   EXPECT_NE(ErrorOf(R"({"subject": {"type": "dragon"}})").find("subject.type"), std::string::npos);
   EXPECT_NE(ErrorOf(R"({"target": {"yaw_deg": "x"}})").find("target.yaw_deg"), std::string::npos);
+}
+
+TEST(SceneTest, TakesUpToThreeCamerasNamedOnceAtOneFrameRate) {
+  const std::string upper =
+      R"({"name": "upper", "position_mm": [0,-1800,2400], "look_at_mm": [0,300,1550]})";
+  const std::string lower =
+      R"({"name": "lower", "position_mm": [0,-1800,1350], "look_at_mm": [0,300,450]})";
+  const std::string up =
+      R"({"name": "up", "position_mm": [0,-1800,300], "look_at_mm": [0,300,1400]})";
+  const Scene scene =
+      Scene::Parse(nlohmann::json::parse("{\"cameras\": [" + upper + "," + lower + "," + up + "]}"),
+                   "scene.json", ".");
+  ASSERT_EQ(scene.cameras.size(), 3u);
+  EXPECT_NEAR(scene.cameras[2].camera.CenterInWorld().z(), 300.0, 1e-9);
+  EXPECT_EQ(
+      ErrorOf("{\"cameras\": [" + upper + "," + lower + "," + up + "," +
+              R"({"name": "x", "position_mm": [0,-1800,900], "look_at_mm": [0,0,900]})" + "]}"),
+      "scene.json: cameras: expected one to 3 cameras");
+  EXPECT_EQ(ErrorOf("{\"cameras\": [" + upper + "," + lower + "," + upper + "]}"),
+            "scene.json: cameras: camera names must differ");
+  EXPECT_EQ(
+      ErrorOf(
+          "{\"cameras\": [" + upper + "," + lower + "," +
+          R"({"name": "up", "position_mm": [0,-1800,300], "look_at_mm": [0,300,1400], "fps": 60})" +
+          "]}"),
+      "scene.json: cameras: all cameras must run at the same fps");
 }
 
 TEST(SceneTest, EmittersAreAListOfPositionsOnTheSlide) {

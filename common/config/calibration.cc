@@ -244,8 +244,8 @@ Calibration Calibration::Parse(const nlohmann::json& json, const std::string& fi
   if (c.mirrors[0].name == c.mirrors[1].name) root.Fail("mirrors", "mirror names must differ");
 
   const auto camera_readers = root.Objects("cameras");
-  if (camera_readers.empty() || camera_readers.size() > 2) {
-    root.Fail("cameras", "expected one or two cameras");
+  if (camera_readers.empty() || camera_readers.size() > kMaxCameras) {
+    root.Fail("cameras", "expected one to " + std::to_string(kMaxCameras) + " cameras");
   }
   for (const auto& r : camera_readers) {
     c.cameras.push_back(ParseCamera(r));
@@ -255,8 +255,10 @@ Calibration Calibration::Parse(const nlohmann::json& json, const std::string& fi
       }
     }
   }
-  if (c.cameras.size() == 2 && c.cameras[0].name == c.cameras[1].name) {
-    root.Fail("cameras", "camera names must differ");
+  for (size_t i = 1; i < c.cameras.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      if (c.cameras[i].name == c.cameras[j].name) root.Fail("cameras", "camera names must differ");
+    }
   }
   if (root.Has("lasers")) c.lasers = ParseLasers(root.Object("lasers"));
   c.residuals = ParseResiduals(root.Object("residuals"));

@@ -20,6 +20,9 @@ namespace mirrorscan {
 
 inline constexpr const char* kCalibrationSchema = "mirrorscan.calibration";
 inline constexpr int kCalibrationVersion = 1;
+// The adopted cabinet has two cameras; a third, looking up under the bust and the chin, is
+// the measured variation (docs/cabinet-design.md).
+inline constexpr size_t kMaxCameras = 3;
 
 // One view of a camera: the centre (no mirror) or the image of one mirror. A mirror
 // view's region is the polygon `outline_px`; the centre view is everything else.

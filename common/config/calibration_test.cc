@@ -172,6 +172,36 @@ TEST(CalibrationTest, ErrorsNameFileAndKey) {
             "/nonexistent/c.json: cannot open file");
 }
 
+// Up to three cameras (the third looking up under the bust; docs/cabinet-design.md), each
+// named once.
+TEST(CalibrationTest, TakesOneToThreeNamedCameras) {
+  auto with_cameras = [](const std::vector<std::string>& names) {
+    Calibration c = Example();
+    const CalibrationCamera camera = c.cameras[0];
+    c.cameras.clear();
+    for (const std::string& name : names) {
+      c.cameras.push_back(camera);
+      c.cameras.back().name = name;
+    }
+    nlohmann::json j = c.ToJson();
+    j.erase("content_hash");
+    return j;
+  };
+  const Calibration three = Calibration::Parse(with_cameras({"upper", "lower", "up"}), "c.json");
+  ASSERT_EQ(three.cameras.size(), 3u);
+  EXPECT_EQ(three.cameras[2].name, "up");
+  EXPECT_EQ(ErrorOf([&] {
+              Calibration::Parse(with_cameras({"a", "b", "c", "d"}), "c.json");
+            }),
+            "c.json: cameras: expected one to 3 cameras");
+  EXPECT_EQ(ErrorOf([&] { Calibration::Parse(with_cameras({}), "c.json"); }),
+            "c.json: cameras: expected one to 3 cameras");
+  EXPECT_EQ(ErrorOf([&] {
+              Calibration::Parse(with_cameras({"upper", "lower", "upper"}), "c.json");
+            }),
+            "c.json: cameras: camera names must differ");
+}
+
 // Random mutations of a valid file: every outcome is a parsed calibration or a
 // ConfigError, never a crash or another exception.
 TEST(CalibrationTest, MutatedJsonNeverCrashes) {

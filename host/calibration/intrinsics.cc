@@ -67,8 +67,11 @@ PatternView DetectChessboard(const cv::Mat& gray, const CalibrationPattern& patt
   const cv::Size size(pattern.columns, pattern.rows);
   PatternView view;
   view.image = image_name;
+  // The classic detector first; where it fails (a board at the image's edge against a black
+  // background, as a camera looking up sees it) OpenCV's sector-based one.
   if (!cv::findChessboardCorners(gray, size, view.corners_px,
-                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE)) {
+                                 cv::CALIB_CB_ADAPTIVE_THRESH | cv::CALIB_CB_NORMALIZE_IMAGE) &&
+      !cv::findChessboardCornersSB(gray, size, view.corners_px, cv::CALIB_CB_EXHAUSTIVE)) {
     throw IntrinsicsError(image_name + ": no " + std::to_string(pattern.columns) + "x" +
                           std::to_string(pattern.rows) + " chessboard found");
   }
