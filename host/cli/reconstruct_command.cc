@@ -107,10 +107,18 @@ void Run(const ReconstructCliOptions& o) {
   }
 }
 
+// " (default X)" from the options' own defaults, so the help cannot drift from them.
+std::string DefaultIs(double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, " (default %g)", value);
+  return text;
+}
+
 }  // namespace
 
 void AddReconstructCommand(CLI::App& app) {
   auto o = std::make_shared<ReconstructCliOptions>();
+  const reconstruction::ReconstructOptions defaults;
   auto* cmd = app.add_subcommand(
       "reconstruct",
       "Every laser peak of a scan to a 3D point (binary PLY with normals, camera, view, laser, "
@@ -123,16 +131,20 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_option("--board", o->board, "board.json whose reconstruction.bounding_cylinder to use")
       ->check(CLI::ExistingFile);
   cmd->add_option("--cylinder-radius", o->radius_mm,
-                  "Bounding cylinder radius, mm: no point beyond it (default 850)")
+                  "Bounding cylinder radius, mm: no point beyond it" +
+                      DefaultIs(defaults.cylinder.radius_mm))
       ->check(CLI::PositiveNumber);
   cmd->add_option("--cylinder-core-radius", o->core_radius_mm,
-                  "Its core, mm: one hypothesis there decides a peak alone (default 450)")
+                  "Its core, mm: one hypothesis there decides a peak alone" +
+                      DefaultIs(defaults.cylinder.core_radius_mm))
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--cylinder-bottom", o->bottom_mm, "Bounding cylinder bottom, mm (default 10)");
-  cmd->add_option("--cylinder-top", o->top_mm, "Bounding cylinder top, mm (default 2100)");
+  cmd->add_option("--cylinder-bottom", o->bottom_mm,
+                  "Bounding cylinder bottom, mm" + DefaultIs(defaults.cylinder.bottom_mm));
+  cmd->add_option("--cylinder-top", o->top_mm,
+                  "Bounding cylinder top, mm" + DefaultIs(defaults.cylinder.top_mm));
   cmd->add_option("--min-angle", o->min_angle_deg,
-                  "Drop points whose ray meets the laser plane flatter than this, degrees "
-                  "(default 5)")
+                  "Drop points whose ray meets the laser plane flatter than this, degrees" +
+                      DefaultIs(defaults.min_ray_plane_angle_deg))
       ->check(CLI::Range(0.0, 89.0));
   cmd->add_flag("--calibration-mismatch-ok", o->mismatch_ok,
                 "Use the calibration even if the archive was made with another one");
@@ -152,7 +164,8 @@ void AddReconstructCommand(CLI::App& app) {
   cmd->add_flag("--no-stereo", o->no_stereo,
                 "Do not decide laser and view by what the other camera sees");
   cmd->add_option("--stereo-max-mm", o->stereo_max_mm,
-                  "How near another camera's point of the same laser must be, mm (default 3)")
+                  "How near another camera's point of the same laser must be, mm" +
+                      DefaultIs(defaults.stereo_max_mm))
       ->check(CLI::PositiveNumber);
   cmd->add_option("--min-confidence", o->min_confidence,
                   "Drop points whose confidence is below this (default 0: keep all)")
