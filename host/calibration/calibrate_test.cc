@@ -62,7 +62,8 @@ TEST(LensStep, FindsTheBoardACameraLookingUpSeesAtTheImagesEdges) {
   ASSERT_EQ(poses.size(), 30u);
   const CalibrationPattern pattern{
       .columns = board.inner_columns, .rows = board.inner_rows, .square_mm = board.square_mm};
-  for (size_t i = 19; i < 27; i += 3) {  // the third round, a quarter further and more tilted
+  // Three of the third round (a quarter further, 40° turned), one per row of the grid.
+  for (size_t i = 19; i < 27; i += 3) {
     Scene scene = base;
     scene.chessboard.emplace(poses[i]);
     const Renderer renderer(scene);
