@@ -281,6 +281,7 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archiv
     seen = np.zeros(len(points), bool)
     optics = np.zeros(len(points), bool)
     mesh_distance = None
+    loops = section_loops(meta, v, t)  # each girth's loop on the true surface
     if mesh_ply and os.path.exists(mesh_ply):
         mesh = o3d.io.read_triangle_mesh(mesh_ply)
         mesh_distance = Distance(mesh)
@@ -292,7 +293,7 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archiv
             out["regions"][name] = round(100 * float(seen[sel].mean()), 1) if sel.any() else None
         out["sections"] = {key: None if along is None else
                            round(100 * float(np.mean(mesh_distance(along) < SEEN_MM)), 1)
-                           for key, along in section_loops(meta, v, t).items()}
+                           for key, along in loops.items()}
     if sim_dir:
         # What the optics and the extractor reach: truth peaks on the subject with a peak of
         # the archive within 1 px of their row (scripts/score-reconstruction's matching).
@@ -314,7 +315,7 @@ def score(subject_ply, meta, mesh_ply=None, cloud_ply=None, sim_dir=None, archiv
             key: None if along is None else round(100 * float(np.mean(np.asarray(
                 o3d.geometry.PointCloud(o3d.utility.Vector3dVector(along))
                 .compute_point_cloud_distance(lit)) < SEEN_MM)), 1)
-            for key, along in section_loops(meta, v, t).items()}
+            for key, along in loops.items()}
     if cloud_ply and os.path.exists(cloud_ply):
         cloud_points = read_cloud_xyz(cloud_ply)
         out["points"] = int(len(cloud_points))
