@@ -34,22 +34,22 @@ TEST(CliTest, SimScanWritesACompletePeakArchive) {
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const ScanArchive archive = ReadScanFile(dir / "scan.mscan");
   EXPECT_TRUE(archive.report.complete) << archive.report.message;
-  ASSERT_EQ(archive.frames.size(), 8u);  // 4 frames × 2 cameras, in order
+  const std::vector<std::string> cameras = {"upper", "lower", "up"};
+  ASSERT_EQ(archive.frames.size(), 4 * cameras.size());  // 4 frames × 3 cameras, in order
   // The stored peaks against the stripes the renderer says each frame holds.
   std::map<std::pair<int, int>, std::vector<test_support::TruthRow>> truth;  // (camera, frame)
-  for (int camera = 0; camera < 2; ++camera) {
-    for (const auto& row :
-         test_support::ReadTruthCsv(dir / (camera == 0 ? "upper" : "lower") / "truth.csv"))
-      truth[{camera, row.frame}].push_back(row);
+  for (size_t camera = 0; camera < cameras.size(); ++camera) {
+    for (const auto& row : test_support::ReadTruthCsv(dir / cameras[camera] / "truth.csv"))
+      truth[{static_cast<int>(camera), row.frame}].push_back(row);
   }
   size_t peaks = 0;
   test_support::PeakMatch match;
   for (size_t i = 0; i < archive.frames.size(); ++i) {
     const FrameRecord& f = archive.frames[i];
-    EXPECT_EQ(f.sequence, i / 2);
-    EXPECT_EQ(f.camera, i % 2);
+    EXPECT_EQ(f.sequence, i / cameras.size());
+    EXPECT_EQ(f.camera, i % cameras.size());
     EXPECT_TRUE(f.lasers_on);
-    EXPECT_NEAR(f.slide_position_mm, -50.0 + 150.0 * (i / 2) / 30.0, 1e-9);
+    EXPECT_NEAR(f.slide_position_mm, -50.0 + 150.0 * (i / cameras.size()) / 30.0, 1e-9);
     const auto& frame_truth = truth[{f.camera, static_cast<int>(f.sequence)}];
     match += test_support::MatchPeaks(f.peaks, frame_truth);
     peaks += f.peaks.size();

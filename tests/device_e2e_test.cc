@@ -96,7 +96,9 @@ TEST_F(DeviceEndToEndTest, ScanWaitFetchAndFollowMatchTheStoredArchive) {
   EXPECT_TRUE(read.report.complete) << read.report.message;
   EXPECT_EQ(read.header.value("board", ""), "virtual");
   EXPECT_EQ(read.header.value("origin", ""), "api");
-  // Both cameras saw the laser ring in every lit frame; the unlit ones are those whose
+  // The upper and lower cameras saw the laser ring in every lit frame (the camera looking
+  // up from 300 mm sees no stripe until the lasers rise into its view, above ~700 mm on
+  // the body, then in every frame); the unlit ones are those whose
   // exposure began before the lasers went on (a camera's first, or a few more when a
   // loaded machine renders them late), never one after a lit frame.
   // And the peaks are the scene's stripes where the slide was (every third lit frame).
@@ -114,10 +116,12 @@ TEST_F(DeviceEndToEndTest, ScanWaitFetchAndFollowMatchTheStoredArchive) {
       match += test_support::MatchFrameToScene(renderer, frame, 700.0, 2.0);
     if (!frame.peaks.empty()) ++lit_with_peaks[frame.camera];
   }
-  EXPECT_EQ(lit.size(), 2u);
-  EXPECT_EQ(lit_with_peaks, lit);
+  EXPECT_EQ(lit.size(), 3u);
+  EXPECT_EQ(lit_with_peaks[0], lit[0]);
+  EXPECT_EQ(lit_with_peaks[1], lit[1]);
+  EXPECT_GT(lit_with_peaks[2], lit[2] / 4);
   EXPECT_TRUE(unlit_after_lit.empty()) << unlit_after_lit.begin()->second << " unlit after lit";
-  EXPECT_GE(lit[0] + lit[1], static_cast<int>(read.frames.size()) - 8);
+  EXPECT_GE(lit[0] + lit[1] + lit[2], static_cast<int>(read.frames.size()) - 12);
   std::printf(
       "stored peaks vs the scene's truth: %zu of %zu found (RMS %.3f px), %zu of %zu false\n",
       match.found, match.truth, match.RmsPx(), match.false_peaks, match.peaks);

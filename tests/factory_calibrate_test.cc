@@ -39,7 +39,8 @@ const fs::path kBinDir = MIRRORSCAN_BIN_DIR;
 const fs::path kLens = fs::path(MIRRORSCAN_TEST_DATA_DIR) / "lens";
 // The lens step done before (calibrate-intrinsics' files), as a factory reuses it.
 const std::string kLenses = " --intrinsics upper=" + (kLens / "upper.json").string() +
-                            " --intrinsics lower=" + (kLens / "lower.json").string();
+                            " --intrinsics lower=" + (kLens / "lower.json").string() +
+                            " --intrinsics up=" + (kLens / "up.json").string();
 
 using Result = test_support::CommandResult;
 using test_support::ChildProcess;
@@ -111,8 +112,9 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   StartDaemon(kSource / "boards/virtual/scenes/calibration.json");
   // The whole flow: the lens of each camera from its chessboard captures, then the target.
   const std::string captures = (kLens / "captures").string();
-  const Result run = FactoryCalibrate(
-      dir_ / "out", " --chessboard upper=" + captures + " --chessboard lower=" + captures);
+  const Result run = FactoryCalibrate(dir_ / "out", " --chessboard upper=" + captures +
+                                                        " --chessboard lower=" + captures +
+                                                        " --chessboard up=" + captures);
   ASSERT_EQ(run.exit_code, 0) << run.out << daemon_->Log();
   EXPECT_NE(run.out.find("calibrating the lens of camera upper from 30 chessboard images"),
             std::string::npos)
@@ -127,7 +129,7 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   ASSERT_EQ(get.exit_code, 0) << get.out;
   EXPECT_EQ(json::parse(ReadFile(dir_ / "served.json")), computed);
   EXPECT_EQ(json::parse(ReadFile(dir_ / "data/calibration.json")), computed);
-  ASSERT_EQ(computed["cameras"].size(), 2u);
+  ASSERT_EQ(computed["cameras"].size(), 3u);
   ASSERT_EQ(computed["mirrors"].size(), 2u);
   const json report = json::parse(ReadFile(dir_ / "out/report.json"));
   EXPECT_TRUE(report["ok"].get<bool>());
@@ -147,7 +149,7 @@ TEST_F(FactoryCalibrateTest, GoodTargetPassesAndTheDeviceHoldsTheCalibration) {
   const auto rows =
       test_support::CompareWithTruth(ours, cuboid, test_support::SweepTruth(cuboid, 6));
   std::printf("%s", test_support::FormatAgreement(rows).c_str());
-  ASSERT_EQ(rows.size(), 6u);
+  ASSERT_EQ(rows.size(), 9u);  // 3 cameras × 3 views
   // As calibration_truth_test's bounds: measured up to 0.054 px, 0.328 mm RMS and 2.17 mm
   // max (the lower camera's centre view, its rays meeting the planes at 3-10° at the top of
   // its image; 0.274 / 1.56 mm from 5°, before the reconstruction kept rays down to 3°).

@@ -83,14 +83,15 @@ TEST_F(CheckTest, EveryCheckPassesOnTheVirtualBoard) {
   EXPECT_TRUE(o.failed.empty()) << o.output;
   for (const char* name :
        {"ok   drive: answers, homed", "ok   camera upper: present, streaming",
-        "ok   camera lower: present, streaming", "ok   lasers:", "ok   disk:", "ok   calibration:",
-        "ok   clock:", "check passed: 7 checks, 0 failed"}) {
+        "ok   camera lower: present, streaming", "ok   camera up: present, streaming",
+        "ok   lasers:", "ok   disk:", "ok   calibration:", "ok   clock:",
+        "check passed: 8 checks, 0 failed"}) {
     EXPECT_TRUE(Has(o.output, name)) << name << "\n" << o.output;
   }
 }
 
 TEST_F(CheckTest, NoCameraFailsOneLine) {
-  board_["cameras"][1]["id"] = 7;  // the scene has cameras 0 and 1
+  board_["cameras"][1]["id"] = 7;  // the scene has cameras 0, 1 and 2
   const Outcome o = Check();
   EXPECT_EQ(o.exit_code, 1) << o.output;
   ASSERT_EQ(o.failed.size(), 1u) << o.output;

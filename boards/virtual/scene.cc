@@ -15,14 +15,16 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 Eigen::Vector3d Vec3(const std::vector<double>& v) { return {v[0], v[1], v[2]}; }
 
 nlohmann::json DefaultCameras() {
-  // Modelled on the paper's Fig. 1: an upper and a lower camera in front of the subject.
-  // Both look down so that the laser planes they triangulate are never seen edge-on:
+  // Modelled on the paper's Fig. 1: an upper and a lower camera in front of the subject,
+  // both looking down so that the laser planes they triangulate are never seen edge-on:
   // the upper camera serves heights above ~950 mm, the lower one those below. The upper
-  // one at 2400 mm sees a 2.05 m person's back in the mirrors above the shoulders
-  // (docs/cabinet-design.md).
+  // one at 2400 mm sees a 2.05 m person's back in the mirrors above the shoulders. The
+  // third, 300 mm above the floor and 28 degrees up, sees what faces down: the underside
+  // of a bust, the armpits, the chin (docs/cabinet-design.md).
   return nlohmann::json::array(
       {{{"name", "upper"}, {"position_mm", {0, -1800, 2400}}, {"look_at_mm", {0, 300, 1550}}},
-       {{"name", "lower"}, {"position_mm", {0, -1800, 1350}}, {"look_at_mm", {0, 300, 450}}}});
+       {{"name", "lower"}, {"position_mm", {0, -1800, 1350}}, {"look_at_mm", {0, 300, 450}}},
+       {{"name", "up"}, {"position_mm", {0, -1800, 300}}, {"look_at_mm", {0, 300, 1400}}}});
 }
 
 SceneCamera ParseCamera(const JsonReader& r) {

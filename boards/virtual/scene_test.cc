@@ -28,7 +28,7 @@ TEST(SceneTest, ABodysAlbedoIsPerRegion) {
 // The defaults are the cabinet docs/boards.md draws (docs/cabinet-design.md chose it).
 TEST(SceneTest, DefaultsAreTheCabinetForPeople) {
   const Scene scene = Scene::Parse(nlohmann::json::object(), "scene.json", ".");
-  ASSERT_EQ(scene.cameras.size(), 2u);
+  ASSERT_EQ(scene.cameras.size(), 3u);
   EXPECT_EQ(scene.cameras[0].camera.intrinsics.width, 1024);
   EXPECT_EQ(scene.cameras[0].camera.intrinsics.height, 768);
   EXPECT_EQ(scene.cameras[0].fps, 30.0);
@@ -37,6 +37,11 @@ TEST(SceneTest, DefaultsAreTheCabinetForPeople) {
   EXPECT_EQ(scene.cameras[0].camera.intrinsics.fx, 1150.0);
   EXPECT_NEAR(scene.cameras[0].camera.CenterInWorld().z(), 2400.0, 1e-9);
   EXPECT_NEAR(scene.cameras[1].camera.CenterInWorld().z(), 1350.0, 1e-9);
+  // The third camera, 300 mm above the floor, looks up under the bust and the chin.
+  EXPECT_EQ(scene.cameras[2].name, "up");
+  EXPECT_NEAR(scene.cameras[2].camera.CenterInWorld().z(), 300.0, 1e-9);
+  EXPECT_GT(scene.cameras[2].camera.cam_from_world.rotation.toRotationMatrix().row(2).z(),
+            std::sin(27 * M_PI / 180));  // 28° up
   EXPECT_EQ(scene.lasers.emitters_xy.size(), 4u);
   EXPECT_EQ(scene.lasers.power, 2.0);
   EXPECT_EQ(scene.lasers.fan_deg, 90.0);

@@ -45,10 +45,12 @@ TEST(BoardConfigTest, EveryShippedBoardLoads) {
 
 TEST(BoardConfigTest, VirtualBoardUsesVirtualBackends) {
   const BoardConfig c = BoardConfig::Load(kBoards / "virtual" / "board.json");
-  ASSERT_EQ(c.cameras.size(), 2u);
+  ASSERT_EQ(c.cameras.size(), 3u);
   EXPECT_EQ(c.cameras[0].name, "upper");
   EXPECT_EQ(c.cameras[0].backend, CameraBackend::kVirtual);
   EXPECT_EQ(c.cameras[1].scene_camera, 1);
+  EXPECT_EQ(c.cameras[2].name, "up");
+  EXPECT_EQ(c.cameras[2].scene_camera, 2);
   EXPECT_EQ(c.gpio.backend, hal::GpioBackend::kVirtual);
   EXPECT_EQ(c.drive.backend, BoardDrive::Backend::kVirtual);
   EXPECT_EQ(c.gpio.lasers.size(), 3u);

@@ -78,7 +78,9 @@ class ReplayBoardTest : public ::testing::Test {
       camera["width"] = 64;
       camera["height"] = 48;
     }
+    // No two cameras may share a source: the same folder spelled differently.
     board_["cameras"][1]["path"] = (dir_ / ".").string();
+    board_["cameras"][2]["path"] = (dir_ / "." / ".").string();
   }
   const test_support::TempDir dir_{"devices_test"};
   nlohmann::json board_;
@@ -88,7 +90,7 @@ TEST_F(ReplayBoardTest, VirtualDriveAnswersOverModbusAndLinesStartOff) {
   BoardDevices d =
       MakeBoardDevices(BoardConfig::Parse(board_, kVirtualBoard.string()), DriveSimulatorOnly());
   ASSERT_TRUE(d.drive_sim);
-  ASSERT_EQ(d.cameras.size(), 2u);
+  ASSERT_EQ(d.cameras.size(), 3u);
   EXPECT_EQ(d.cameras[0]->config().width, 64);
   // The Modbus path reaches the simulator: a command shows up in its state.
   const uint64_t before = SimState(d).requests;
@@ -111,7 +113,7 @@ TEST(DevicesTest, LibcameraCameraWithoutTheModuleFails) {
   const test_support::TempDir empty_dir("devices_test_no_module");
   setenv(hal::kModuleDirEnv, empty_dir.path().c_str(), 1);
   nlohmann::json board = VirtualBoard();
-  for (int i = 0; i < 2; ++i) {
+  for (int i = 0; i < 3; ++i) {
     board["cameras"][i]["backend"] = "libcamera";
     board["cameras"][i]["id"] = "/base/imx219@" + std::to_string(i);
   }
@@ -160,7 +162,7 @@ TEST(DevicesTest, VirtualCameraNeedsTheVirtualDrive) {
 TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
   const BoardConfig config = BoardConfig::Load(kVirtualBoard);
   BoardDevices d = MakeBoardDevices(config, Linked());
-  ASSERT_EQ(d.cameras.size(), 2u);
+  ASSERT_EQ(d.cameras.size(), 3u);
   EXPECT_EQ(d.cameras[0]->config().width, 1024);
   d.drive->Enable(true);
   d.drive->Home(std::chrono::seconds(10));
@@ -239,7 +241,7 @@ TEST(DevicesTest, VirtualCamerasRenderTheSlideWhereTheDriveIs) {
 // it would need.
 TEST(DevicesTest, FirmwareOnlyBuildRefusesTheVirtualBoard) {
   const std::string error = ErrorOf(VirtualBoard());
-  EXPECT_NE(error.find("drive.backend \"virtual\", cameras upper, lower \"virtual\" need the "
+  EXPECT_NE(error.find("drive.backend \"virtual\", cameras upper, lower, up \"virtual\" need the "
                        "virtual cabinet's simulator"),
             std::string::npos)
       << error;
@@ -251,7 +253,7 @@ TEST(DevicesTest, FirmwareOnlyBuildRefusesTheVirtualBoard) {
 // never run with something else in their place.
 TEST(DevicesTest, VirtualCamerasWithoutTheRendererAreRefused) {
   const std::string error = ErrorOf(VirtualBoard(), DriveSimulatorOnly());
-  EXPECT_NE(error.find("cameras upper, lower \"virtual\" need the virtual cabinet's simulator"),
+  EXPECT_NE(error.find("cameras upper, lower, up \"virtual\" need the virtual cabinet's simulator"),
             std::string::npos)
       << error;
   EXPECT_EQ(error.find("drive.backend"), std::string::npos) << error;

@@ -265,7 +265,7 @@ TEST_F(ResultsApiTest, StatusNamesTheCameras) {
   auto res = Client().Get("/api/v1/status");
   ASSERT_TRUE(res);
   ASSERT_EQ(res->status, 200) << res->body;
-  EXPECT_EQ(json::parse(res->body).at("cameras"), json({"upper", "lower"}));
+  EXPECT_EQ(json::parse(res->body).at("cameras"), json({"upper", "lower", "up"}));
 }
 
 }  // namespace

@@ -60,7 +60,7 @@ TEST(BoardJson, CalibrationSettingsNameTheKey) {
               "board.json: calibration.limits.max_rms_px: must be in [0.001, 100], got -1");
   }
   EXPECT_EQ(CalibrationSettingsFromBoard(source + "/boards/virtual/board.json").camera_names,
-            (std::vector<std::string>{"upper", "lower"}));
+            (std::vector<std::string>{"upper", "lower", "up"}));
 }
 
 TEST(BoardJson, PeakParamsFromBoard) {

@@ -41,7 +41,7 @@ struct Sweep {
 };
 
 // Frames [first_frame, last_frame) of the scene (boards/virtual/scenes/<scene_name>.json)
-// with `changes` merged in, both cameras.
+// with `changes` merged in: the upper and lower camera unless `changes` lists the cameras.
 Sweep RenderSweep(const nlohmann::json& changes, int first_frame, int last_frame,
                   const std::string& scene_name = "cuboid");
 
@@ -54,9 +54,9 @@ const Sweep& MannequinSweep();
 
 // A person in cabinet G (docs/cabinet-design.md: three emitters per laser level, mirrors
 // 1000 mm wide from the floor to 2100 mm with their corner 900 mm behind the subject, the
-// upper camera at 2400 mm, f 1250 px, lasers of twice the power lighting their whole sheet), set here in full rather
-// than left to the scene defaults: the population's f12 (1.90 m, heavy, arms at 35°),
-// frames 120–220, where the lower camera sees the arms' silhouettes run along the mirrors'
+// upper camera at 2400 mm, f 1250 px, lasers of twice the power lighting their whole sheet), set
+// here in full rather than left to the scene defaults: the population's f12 (1.90 m, heavy, arms at
+// 35°), frames 120–220, where the lower camera sees the arms' silhouettes run along the mirrors'
 // stripes, the upper camera the hands at z 800–1000 in the mirrors (outside the core) and the
 // chest directly in the mirrors' regions.
 const Sweep& PersonInCabinetG();
