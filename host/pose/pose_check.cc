@@ -27,7 +27,15 @@ constexpr double kTrunkFrom = 0.55, kTrunkTo = 0.62;  // the trunk, for yaw with
 constexpr double kNeckFrom = 0.87, kNeckTo = 0.90;    // jaw and neck, for the lean
 constexpr double kHeadFrom = 0.90;                    // the head's sections, for its turn
 constexpr double kAnkle = 0.04;                       // the lean's pivot height
-constexpr double kCrotch = 0.47;  // crotch height, for the stature when the head is cut
+constexpr double kCrotch = 0.47;      // crotch height, for the stature when the head is cut
+constexpr double kFeetMargin = 0.03;  // how much further the toes reach than the heels
+
+// The value below which a share q of the values lie (the nearest rank).
+double Quantile(std::vector<double> values, double q) {
+  const size_t at = std::min(values.size() - 1, static_cast<size_t>(q * values.size()));
+  std::nth_element(values.begin(), values.begin() + at, values.end());
+  return values[at];
+}
 
 double Median(std::vector<double> values) {
   const size_t mid = values.size() / 2;
@@ -544,7 +552,10 @@ class Checker {
     report_.centre_mm = centre / centres;
   }
 
-  // The feet point forward: facing the mirrors, they lie behind the ankles.
+  // The feet point forward: the toes reach further ahead of the ankles than the heels
+  // behind them. Facing the mirrors, the other way round. Where neither end reaches
+  // clearly further (legs without feet, as the mannequin's) the legs' direction stands:
+  // the median of what is seen there swings with which frames a sparse sweep kept.
   void Facing() {
     if (!legs_found_ && report_.yaw_from.empty()) return;
     sections_.SetBodyFrame(report_.centre_mm, yaw_rad_);
@@ -553,7 +564,10 @@ class Checker {
       if (p.z() > 0.03 * stature_) break;
       ahead.push_back(sections_.ToBody(p.head<2>()).x());
     }
-    if (ahead.size() >= 20 && Median(ahead) < -0.01 * stature_) yaw_rad_ += kPi;
+    if (ahead.size() >= 20) {
+      const double toes = Quantile(ahead, 0.95), heels = -Quantile(ahead, 0.05);
+      if (heels - toes > kFeetMargin * stature_) yaw_rad_ += kPi;
+    }
     report_.yaw_deg.value = WrapDeg(Degrees(yaw_rad_));
   }
 

@@ -69,17 +69,10 @@ fs.mkdirSync(ARTIFACTS, { recursive: true });
 const downloads = path.join(dir, 'downloads');
 fs.mkdirSync(downloads);
 // The mannequin turned 25° to its left (counter-clockwise seen from above): a scan the pose
-// check flags, so the page shows its advice. Two cameras (upper, lower): with the browser
-// beside it the virtual device rendering three kept 253, 257 and 159 of 300 frames, and
-// the pose check read that sparse sweep as facing away (with every frame it reads 25°).
+// check flags, so the page shows its advice.
 board.virtual.scene = path.join(dir, 'mannequin-turned.json');
-board.cameras = board.cameras.slice(0, 2);
 fs.writeFileSync(board.virtual.scene, JSON.stringify({
   subject: { type: 'mannequin', yaw_deg: 25 }, frames: 300, seed: 1,
-  cameras: [
-    { name: 'upper', position_mm: [0, -1800, 2400], look_at_mm: [0, 300, 1550] },
-    { name: 'lower', position_mm: [0, -1800, 1350], look_at_mm: [0, 300, 450] },
-  ],
 }));
 fs.writeFileSync(path.join(dir, 'board.json'), JSON.stringify(board, null, 2));
 const port = await freePort();
