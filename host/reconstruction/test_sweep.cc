@@ -20,26 +20,18 @@ namespace mirrorscan::reconstruction::testing_sweeps {
 using virtual_cabinet::Renderer;
 using virtual_cabinet::Scene;
 
-namespace {
-
-nlohmann::json TwoCameras() {
-  return nlohmann::json::parse(R"([
-      {"name": "upper", "position_mm": [0, -1800, 2400], "look_at_mm": [0, 300, 1550]},
-      {"name": "lower", "position_mm": [0, -1800, 1350], "look_at_mm": [0, 300, 450]}])");
-}
-
-}  // namespace
-
 Sweep RenderSweep(const nlohmann::json& changes, int first_frame, int last_frame,
                   const std::string& scene_name) {
   const std::string dir = std::string(MIRRORSCAN_SOURCE_DIR) + "/boards/virtual/scenes";
   nlohmann::json scene_json = JsonReader::ParseFile(dir + "/" + scene_name + ".json");
-  // The rules' figures were set against the truth of the upper and lower cameras (what the
-  // rpi boards have); a sweep takes the third camera only where it asks for it. The
-  // three-camera cabinet's figures are the population's (docs/cabinet-design.md).
-  if (!changes.contains("cameras")) scene_json.merge_patch({{"cameras", TwoCameras()}});
   scene_json.merge_patch(changes);
-  Sweep sweep{Scene::Parse(scene_json, scene_name + ".json", dir), {}, {}, {}, {}, 0, 0};
+  Scene scene = Scene::Parse(scene_json, scene_name + ".json", dir);
+  // The rules' figures were set against the truth of the upper and lower cameras (what the
+  // rpi boards have): the default scene's first two. A sweep takes the third only where it
+  // lists its cameras. The three-camera cabinet's figures are the population's
+  // (docs/cabinet-design.md).
+  if (!changes.contains("cameras")) scene.cameras.resize(2);
+  Sweep sweep{std::move(scene), {}, {}, {}, {}, 0, 0};
   sweep.calibration = Calibration::Parse(sweep.scene.TrueCalibration(), "calibration.json");
   const Renderer renderer(sweep.scene);
   sweep.archive.header = virtual_cabinet::SweepArchiveHeader(sweep.scene);
