@@ -395,6 +395,42 @@ float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float wid
   return centre + static_cast<float>(lo_row);
 }
 
+// A line across an edge of reflectance (dark underwear against skin, the body's outline
+// against the dark cabinet) is dimmed on the edge's dark side, so its centre moves towards
+// the bright side (up to a pixel for a sharp line at 6:1), and the body's outline cuts the
+// line besides. No background model undoes that from one column, so such a peak is given
+// with a score of at most kEdgeScore, for the host to judge against its neighbours (the
+// reconstruction's surface check): where the flanks' ambient differs by kEdgeRatio or more
+// and the edge runs through the line or near it. On the bright side the samples never
+// fall back below kEdgeValley of the step (`bright_valley`, background-subtracted; a
+// neighbouring line leaves a deeper valley, noise a shallower one), and on the dark side
+// they reach the dark level
+// (within 1 - kEdgeWithin of the step) within 3 sigma of the top plus 3 px. On the virtual
+// cabinet's bodies these lines gave the points 5-15 mm off the surface, along the
+// underwear's hems; dropping them instead left gaps 15 mm tall at the hems, where the
+// thigh girth and the underbust are measured.
+constexpr float kEdgeRatio = 2.5f;
+constexpr float kEdgeWithin = 0.7f;
+constexpr float kEdgeValley = 0.6f;
+constexpr float kEdgeScore = 0.1f;
+bool OnReflectanceEdge(const Profile& p, float left, float right, float width,
+                       float bright_valley) {
+  const float dark = std::min(left, right), bright = std::max(left, right);
+  const float step = bright - dark;
+  if (bright + 1.0f < kEdgeRatio * (dark + 1.0f)) return false;
+  if (bright_valley < kEdgeValley * step) return false;
+  const int reach = static_cast<int>(std::ceil(1.27f * width)) + 3;
+  const float dark_level = dark + (1.0f - kEdgeWithin) * step;
+  if (right > left) {  // Dark above: walk up from the top.
+    for (int i = p.first - 1; i >= std::max(0, p.first - reach); --i)
+      if (p.Raw(i) <= dark_level) return true;
+  } else {
+    for (int i = p.last + 1; i <= std::min(p.n - 1, p.last + reach); ++i)
+      if (p.Raw(i) <= dark_level) return true;
+  }
+  return false;
+}
+
 // Refines one candidate (u, r0) into a peak; false if it is no laser peak. A pure function
 // of the image and the candidate, so the order candidates arrive in does not matter.
 bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, int r0, Peak* peak) {
@@ -471,6 +507,7 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
   // amplitude for a peak barely above it (that minimum is noise-biased low, and an
   // isolated line falls to its background on both sides). Only needed where the flanks
   // disagree: with a linear background a step lifts both sides alike.
+  bool on_edge = false;
   if (!linear) {
     const float top_s = std::max(s(first), s(last));
     const int reach = std::max(2, static_cast<int>(std::ceil(1.5f * width)));
@@ -484,6 +521,8 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
     if (top_s - std::max(valley_left, valley_right) < std::min(thr, 0.9f * amplitude)) {
       return false;
     }
+    on_edge =
+        OnReflectanceEdge(profile, left, right, width, right > left ? valley_right : valley_left);
   }
   if (profile.flat_top || params.estimator == PeakEstimator::kWindowedCom ||
       params.estimator == PeakEstimator::kThresholdedCom) {
@@ -531,6 +570,7 @@ bool RefineOne(const CandidateSearch& search, const PeakParams& params, int u, i
                       std::clamp((params.max_width_px - width) / 1.0f, 0.0f, 1.0f);
   const float q_sym = std::clamp(1.0f - std::abs(xl + xr - 2.0f * t) / width, 0.0f, 1.0f);
   peak->score = std::clamp(q_amp * q_wid * q_sym * (saturated ? 0.8f : 1.0f), 0.0f, 1.0f);
+  if (on_edge) peak->score = std::min(peak->score, kEdgeScore);
   return true;
 }
 

@@ -16,7 +16,8 @@
 //     SIMD over rows (many columns per vector); ExtractPeaksScalar walks each column. Both give the
 //     same candidates.
 //  2. Refinement (scalar, per candidate, identical in both): plateau, local linear
-//     background from the two flanks, FWHM, width checks, sub-pixel estimator, score;
+//     background from the two flanks, FWHM, width checks, sub-pixel estimator, score (at
+//     most 0.1 for a line across an edge of reflectance, whose centre the edge moves);
 //     then per column: min_separation_px (keep the stronger) and max_peaks_per_column
 //     (keep the strongest).
 //  3. Across columns (shared, so SIMD and scalar agree): each peak is linked to its stripe's peaks

@@ -20,11 +20,22 @@ constexpr int kMinNeighbours = 6;
 // Normals within 60° of each other: one surface (a box's faces meet at 90°).
 const double kSameSurfaceCos = std::cos(60.0 * kDegToRad);
 
-// A confident point as a judge: where it is, which camera saw it, how squarely.
+// Neighbours nearer in height than this lie on the point's own slice: the lasers light
+// the same heights, so a whole slice shares one frame's fault (a line across the
+// underwear's hem is off in every view and for every laser alike).
+constexpr double kOtherSliceMm = 2.0;
+// A surface whose normal's height component is below this is steep (within ~45° of
+// vertical).
+constexpr float kSteepNormalZ = 0.7f;
+
+// A point as a judge: where it is, which camera saw it, how squarely, and whether it is
+// confident (the confident judge weak ones; every point judges a weak one that has too
+// few confident neighbours, from the slices above and below it).
 struct Judge {
   Eigen::Vector3f point;
   uint8_t camera;
   float sin_angle;
+  bool confident;
 };
 
 // The plane of neighbours accumulated one by one: the point's distance from it and the
@@ -70,7 +81,7 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
   ParallelFor(points->size(), threads, [&](size_t begin, size_t end) {
     for (size_t i = begin; i < end; ++i) {
       const CloudPoint& cp = (*points)[i];
-      if (cp.confidence < threshold || suspect[i]) continue;
+      if (suspect[i]) continue;
       if (const auto cell = box.Index(cp.point_in_world.cast<double>()))
         cell_of[i] = static_cast<uint32_t>(*cell);
     }
@@ -85,7 +96,7 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
     for (size_t i = 0; i < points->size(); ++i)
       if (cell_of[i] != kNone)
         by_cell[fill[cell_of[i]]++] = {(*points)[i].point_in_world, (*points)[i].camera,
-                                       notes.sin_angle[i]};
+                                       notes.sin_angle[i], (*points)[i].confidence >= threshold};
   }
   const double radius2 = radius * radius;
   std::vector<uint8_t> drop(points->size(), kKeep);
@@ -97,14 +108,17 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
       const bool doubted = weak || suspect[i];
       if (!doubted && !flat) continue;
       const Eigen::Vector3d at = cp.point_in_world.cast<double>();
-      // All confident neighbours; and those another camera saw more squarely.
-      PlaneFit all, squarer;
+      // All confident neighbours; those another camera saw more squarely; and every
+      // neighbour on another slice.
+      PlaneFit all, squarer, other_slices;
       const float squarer_sin = static_cast<float>(options.flat_check_ratio) * notes.sin_angle[i];
       box.ForNeighbourhood(at, [&](size_t cell) {
         for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
           const Judge& judge = by_cell[k];
           const Eigen::Vector3d q = judge.point.cast<double>() - at;
           if (q.squaredNorm() > radius2) continue;
+          if (weak && std::abs(q.z()) >= kOtherSliceMm) other_slices.Add(q);
+          if (!judge.confident) continue;
           if (doubted) all.Add(q);
           if (flat && judge.camera != cp.camera && judge.sin_angle >= squarer_sin) squarer.Add(q);
         }
@@ -127,8 +141,20 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
       if (!doubted) continue;
       // A suspect needs the surface's word: isolated phantoms have none.
       if (all.count() < kMinNeighbours) {
-        if (suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote)
+        if (suspect[i] || cp.rule == DecidedBy::kColumnCount || cp.rule == DecidedBy::kLabelVote) {
           drop[i] = suspect[i] ? kSuspect : kWeak;
+          continue;
+        }
+        // Where the weak points cluster (a whole slice the extractor doubted, along a hem),
+        // the slices above and below judge: a steep surface is lit every few millimetres of
+        // height, so a point on one that none of them carries, or one off their plane, is
+        // dropped. (A level face, the top of a shoulder, may lie on one slice alone.)
+        if (other_slices.count() < kMinNeighbours) {
+          if (std::abs(cp.normal.z()) < kSteepNormalZ) drop[i] = kWeak;
+          continue;
+        }
+        other_slices.Fit(&off, &rms);
+        if (off > options.surface_check_max_mm && off > 3.0 * rms) drop[i] = kWeak;
         continue;
       }
       all.Fit(&off, &rms);

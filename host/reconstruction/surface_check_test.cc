@@ -34,9 +34,12 @@ TEST(SurfaceCheck, KeepsTheSuspectsTheSurfaceCarriesAndDropsPointsOffIt) {
               unchecked_score.points, unchecked_score.found_right, unchecked_score.max_mm);
   // In the mannequin's cabinet the check kept more right points than the outlier test alone;
   // on the cuboid's saturated front face in the cabinet for people (Reconstruct.Cuboid...) it
-  // drops 0.5 % of them with the points off the box.
+  // drops 0.85 % of them with the points off the box (the extractor doubts the lines along
+  // its outline: peaks.cc, OnReflectanceEdge).
   EXPECT_GT(checked_score.found_right, unchecked_score.found_right * 0.99);
-  EXPECT_EQ(checked_score.wrong, unchecked_score.wrong);
+  // It keeps no wrong point the outlier test alone drops (with the lines along the cuboid's
+  // outline doubted by the extractor, it drops 2 that the outlier test alone keeps).
+  EXPECT_LE(checked_score.wrong, unchecked_score.wrong);
   // What it drops are points off the box, not its faces' points.
   EXPECT_LE(checked_score.max_mm, unchecked_score.max_mm);
   EXPECT_LT(filtered.summary.dropped_off_surface, filtered.summary.points / 100);
@@ -86,6 +89,41 @@ TEST(SurfaceCheck, AFlatRaysPointOffTheSurfaceASquarerCameraSeesIsDropped) {
   // Rays of 5.7° are not judged with the check at 5°.
   options.flat_check_deg = 5.0;
   EXPECT_EQ(DropOffSurface(options, 1, notes, &again).flat, 0u);
+}
+
+// Where every point is weak (a band of slices the extractor doubted, along a hem), the
+// slices above and below judge: a slice 6 mm off the face they lie on is dropped, one
+// 1 mm off (within surface_check_max_mm) stays, and so does every point of the face; a
+// weak point with no slice near it is dropped.
+TEST(SurfaceCheck, AWeakSliceOffTheSlicesAboveAndBelowIsDropped) {
+  std::vector<CloudPoint> points;
+  PointNotes notes;
+  auto add = [&](const Eigen::Vector3f& at) {
+    CloudPoint p;
+    p.point_in_world = at;
+    p.normal = Eigen::Vector3f(0, -1, 0);
+    p.confidence = 0.05f;
+    p.rule = DecidedBy::kCylinder;
+    points.push_back(p);
+    notes.suspect.push_back(0);
+    notes.sin_angle.push_back(0.5f);
+  };
+  size_t face = 0, off_slice = 0, near_slice = 0;
+  for (float z = 1000; z <= 1100; z += 5) {
+    const float y = z == 1050 ? 6.0f : z == 1075 ? 1.0f : 0.0f;
+    for (float x = -50; x <= 50; x += 2) {
+      add({x, y, z});
+      ++(z == 1050 ? off_slice : z == 1075 ? near_slice : face);
+    }
+  }
+  add({500, 0, 1000});  // Alone.
+  ReconstructOptions options;
+  const SurfaceDrops drops = DropOffSurface(options, 1, notes, &points);
+  EXPECT_EQ(drops.weak, off_slice + 1);
+  EXPECT_EQ(points.size(), face + near_slice);
+  size_t off_face = 0;
+  for (const CloudPoint& p : points) off_face += std::abs(p.point_in_world.y()) > 1.5f;
+  EXPECT_EQ(off_face, 0u);
 }
 
 }  // namespace
