@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
@@ -27,6 +28,8 @@ constexpr double kOtherSliceMm = 2.0;
 // A surface whose normal's height component is below this is steep (within ~45° of
 // vertical).
 constexpr float kSteepNormalZ = 0.7f;
+// Judges along one line say nothing of a plane: their RMS across it must reach this.
+constexpr double kMinSpreadMm = 2.0;
 
 // A point as a judge: where it is, which camera saw it, how squarely, and whether it is
 // confident (the confident judge weak ones; every point judges a weak one that has too
@@ -49,13 +52,17 @@ class PlaneFit {
   }
   int count() const { return n_; }
   // The neighbours were added relative to the point judged: the point is the origin.
-  void Fit(double* off, double* rms, Eigen::Vector3d* normal = nullptr) const {
+  // `spread`: the neighbours' RMS across the plane's narrower direction (near 0 when they
+  // lie along one line, which any plane through it fits).
+  void Fit(double* off, double* rms, Eigen::Vector3d* normal = nullptr,
+           double* spread = nullptr) const {
     const Eigen::Vector3d mean = sum_ / n_;
     const Eigen::Matrix3d covariance = outer_ / n_ - mean * mean.transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(covariance);
     *rms = std::sqrt(std::max(0.0, solver.eigenvalues()(0)));
     *off = std::abs(solver.eigenvectors().col(0).dot(-mean));
     if (normal) *normal = solver.eigenvectors().col(0);
+    if (spread) *spread = std::sqrt(std::max(0.0, solver.eigenvalues()(1)));
   }
 
  private:
@@ -65,6 +72,64 @@ class PlaneFit {
 };
 
 enum Drop : uint8_t { kKeep = 0, kWeak, kSuspect, kFlat };
+
+// A weak point with too few confident neighbours, judged by every point within `radius`
+// on another slice: off when further than max_mm from their plane and 3 times its RMS.
+// Where they are too few or lie along one line (a point 12 mm off, at the lower camera's
+// flat top rows, has only a stripe of the next slice that near), those within twice the
+// radius judge. The plane is fitted twice, the second time to the neighbours within 2 RMS
+// (at least 1 mm) of the first: along a hem the next slices are doubted too and some lie
+// off, which would tilt it. A point on a steep surface that no other slice carries is off
+// (a steep surface is lit every few millimetres of height; a level one, a shoulder's top,
+// may lie on one slice alone, but then not as a few points in the air).
+bool OffOtherSlices(const VoxelBox& box, const std::vector<uint32_t>& start,
+                    const std::vector<Judge>& by_cell, const Eigen::Vector3d& at, double radius,
+                    double max_mm, float normal_z) {
+  thread_local std::vector<Eigen::Vector3d> near;
+  near.clear();
+  const double far2 = 4.0 * radius * radius;
+  int own_slice = 0;  // Within the radius (the point itself among them).
+  box.ForNeighbourhood(
+      at,
+      [&](size_t cell) {
+        for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
+          const Eigen::Vector3d q = by_cell[k].point.cast<double>() - at;
+          if (q.squaredNorm() > far2) continue;
+          if (std::abs(q.z()) >= kOtherSliceMm)
+            near.push_back(q);
+          else if (q.squaredNorm() <= radius * radius)
+            ++own_slice;
+        }
+      },
+      2);
+  const auto fit = [&](double reach2, double* off, double* rms) {
+    PlaneFit first;
+    for (const Eigen::Vector3d& q : near)
+      if (q.squaredNorm() <= reach2) first.Add(q);
+    if (first.count() < kMinNeighbours) return false;
+    double spread = 0;
+    Eigen::Vector3d normal;
+    first.Fit(off, rms, &normal, &spread);
+    if (spread < kMinSpreadMm) return false;
+    // The first plane passes through the mean of the neighbours (relative to the point).
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const Eigen::Vector3d& q : near)
+      if (q.squaredNorm() <= reach2) mean += q, ++n;
+    mean /= n;
+    const double keep = std::max(1.0, 2.0 * *rms);
+    PlaneFit second;
+    for (const Eigen::Vector3d& q : near)
+      if (q.squaredNorm() <= reach2 && std::abs(normal.dot(q - mean)) <= keep) second.Add(q);
+    if (second.count() < kMinNeighbours) return true;
+    second.Fit(off, rms, nullptr, &spread);
+    return spread >= kMinSpreadMm;
+  };
+  double off = 0, rms = 0;
+  if (!fit(radius * radius, &off, &rms) && !fit(far2, &off, &rms))
+    return std::abs(normal_z) < kSteepNormalZ || own_slice <= kMinNeighbours;
+  return off > max_mm && off > 3.0 * rms;
+}
 
 }  // namespace
 
@@ -108,16 +173,14 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
       const bool doubted = weak || suspect[i];
       if (!doubted && !flat) continue;
       const Eigen::Vector3d at = cp.point_in_world.cast<double>();
-      // All confident neighbours; those another camera saw more squarely; and every
-      // neighbour on another slice.
-      PlaneFit all, squarer, other_slices;
+      // All confident neighbours; and those another camera saw more squarely.
+      PlaneFit all, squarer;
       const float squarer_sin = static_cast<float>(options.flat_check_ratio) * notes.sin_angle[i];
       box.ForNeighbourhood(at, [&](size_t cell) {
         for (uint32_t k = start[cell]; k < start[cell + 1]; ++k) {
           const Judge& judge = by_cell[k];
           const Eigen::Vector3d q = judge.point.cast<double>() - at;
           if (q.squaredNorm() > radius2) continue;
-          if (weak && std::abs(q.z()) >= kOtherSliceMm) other_slices.Add(q);
           if (!judge.confident) continue;
           if (doubted) all.Add(q);
           if (flat && judge.camera != cp.camera && judge.sin_angle >= squarer_sin) squarer.Add(q);
@@ -145,16 +208,11 @@ SurfaceDrops DropOffSurface(const ReconstructOptions& options, int threads, cons
           drop[i] = suspect[i] ? kSuspect : kWeak;
           continue;
         }
-        // Where the weak points cluster (a whole slice the extractor doubted, along a hem),
-        // the slices above and below judge: a steep surface is lit every few millimetres of
-        // height, so a point on one that none of them carries, or one off their plane, is
-        // dropped. (A level face, the top of a shoulder, may lie on one slice alone.)
-        if (other_slices.count() < kMinNeighbours) {
-          if (std::abs(cp.normal.z()) < kSteepNormalZ) drop[i] = kWeak;
-          continue;
-        }
-        other_slices.Fit(&off, &rms);
-        if (off > options.surface_check_max_mm && off > 3.0 * rms) drop[i] = kWeak;
+        // Where the weak points cluster (a whole band of slices the extractor doubted, along
+        // a hem), the slices above and below judge (OffOtherSlices).
+        if (OffOtherSlices(box, start, by_cell, at, radius, options.surface_check_max_mm,
+                           cp.normal.z()))
+          drop[i] = kWeak;
         continue;
       }
       all.Fit(&off, &rms);

@@ -42,7 +42,9 @@ TEST(SurfaceCheck, KeepsTheSuspectsTheSurfaceCarriesAndDropsPointsOffIt) {
   EXPECT_LE(checked_score.wrong, unchecked_score.wrong);
   // What it drops are points off the box, not its faces' points.
   EXPECT_LE(checked_score.max_mm, unchecked_score.max_mm);
-  EXPECT_LT(filtered.summary.dropped_off_surface, filtered.summary.points / 100);
+  // 767 of 60,165 (1.3 %) since the extractor doubts the lines along the outline and the
+  // slices above and below judge them: as many right points as before that judge.
+  EXPECT_LT(filtered.summary.dropped_off_surface, filtered.summary.points * 3 / 200);
 }
 
 // A camera's flat rays are judged by the surface another camera sees more squarely: off
@@ -94,14 +96,14 @@ TEST(SurfaceCheck, AFlatRaysPointOffTheSurfaceASquarerCameraSeesIsDropped) {
 // Where every point is weak (a band of slices the extractor doubted, along a hem), the
 // slices above and below judge: a slice 6 mm off the face they lie on is dropped, one
 // 1 mm off (within surface_check_max_mm) stays, and so does every point of the face; a
-// weak point with no slice near it is dropped.
+// weak point with nothing near it is dropped; a level face lit by one slice alone stays.
 TEST(SurfaceCheck, AWeakSliceOffTheSlicesAboveAndBelowIsDropped) {
   std::vector<CloudPoint> points;
   PointNotes notes;
-  auto add = [&](const Eigen::Vector3f& at) {
+  auto add = [&](const Eigen::Vector3f& at, const Eigen::Vector3f& normal = {0, -1, 0}) {
     CloudPoint p;
     p.point_in_world = at;
-    p.normal = Eigen::Vector3f(0, -1, 0);
+    p.normal = normal;
     p.confidence = 0.05f;
     p.rule = DecidedBy::kCylinder;
     points.push_back(p);
@@ -116,13 +118,18 @@ TEST(SurfaceCheck, AWeakSliceOffTheSlicesAboveAndBelowIsDropped) {
       ++(z == 1050 ? off_slice : z == 1075 ? near_slice : face);
     }
   }
-  add({500, 0, 1000});  // Alone.
+  add({500, 0, 1000}, {0, 0, 1});  // Alone (facing up: not on a steep face).
+  // A level face lit by one slice alone (a shoulder's top) stays.
+  size_t level = 0;
+  for (float x = -50; x <= 50; x += 2)
+    for (float y = 100; y <= 140; y += 2, ++level) add({x, y, 1200}, {0, 0, 1});
   ReconstructOptions options;
   const SurfaceDrops drops = DropOffSurface(options, 1, notes, &points);
   EXPECT_EQ(drops.weak, off_slice + 1);
-  EXPECT_EQ(points.size(), face + near_slice);
+  EXPECT_EQ(points.size(), face + near_slice + level);
   size_t off_face = 0;
-  for (const CloudPoint& p : points) off_face += std::abs(p.point_in_world.y()) > 1.5f;
+  for (const CloudPoint& p : points)
+    off_face += p.point_in_world.z() < 1150 && std::abs(p.point_in_world.y()) > 1.5f;
   EXPECT_EQ(off_face, 0u);
 }
 

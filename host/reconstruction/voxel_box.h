@@ -39,12 +39,13 @@ class VoxelBox {
     if (!(c.array() >= 0).all() || !(c.array() < size_.array()).all()) return std::nullopt;
     return Flat(c);
   }
+  // The voxels within `reach` of the point's along each axis (27 for reach 1).
   template <typename F>
-  void ForNeighbourhood(const Eigen::Vector3d& point, F&& visit) const {
+  void ForNeighbourhood(const Eigen::Vector3d& point, F&& visit, int reach = 1) const {
     const Eigen::Vector3i at = Cell(point);
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
+    for (int dz = -reach; dz <= reach; ++dz)
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx) {
           const Eigen::Vector3i c = at + Eigen::Vector3i(dx, dy, dz);
           if (Inside(c)) visit(Flat(c));
         }
