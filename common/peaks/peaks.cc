@@ -397,18 +397,17 @@ float WideCentre(const CandidateSearch& search, int u, int r0, int r1, float wid
 
 // A line across an edge of reflectance (dark underwear against skin, the body's outline
 // against the dark cabinet) is dimmed on the edge's dark side, so its centre moves towards
-// the bright side (up to a pixel for a sharp line at 6:1), and the body's outline cuts the
+// the bright side (up to 1.5 px for a sharp line at 6:1), and the body's outline cuts the
 // line besides. No background model undoes that from one column, so such a peak is given
 // with a score of at most kEdgeScore, for the host to judge against its neighbours (the
 // reconstruction's surface check): where the flanks' ambient differs by kEdgeRatio or more
 // and the edge runs through the line or near it. On the bright side the samples never
 // fall back below kEdgeValley of the step (`bright_valley`, background-subtracted; a
 // neighbouring line leaves a deeper valley, noise a shallower one), and on the dark side
-// they reach the dark level
-// (within 1 - kEdgeWithin of the step) within 3 sigma of the top plus 3 px. On the virtual
-// cabinet's bodies these lines gave the points 5-15 mm off the surface, along the
-// underwear's hems; dropping them instead left gaps 15 mm tall at the hems, where the
-// thigh girth and the underbust are measured.
+// they reach the dark level (within 1 - kEdgeWithin of the step) within 3 sigma of the top
+// plus 3 px. On the virtual cabinet's bodies these lines gave the points 5-15 mm off the
+// surface, along the underwear's edges; dropping them instead emptied the slices below
+// each hem, where the thigh girth is measured.
 constexpr float kEdgeRatio = 2.5f;
 constexpr float kEdgeWithin = 0.7f;
 constexpr float kEdgeValley = 0.6f;
