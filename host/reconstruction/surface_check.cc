@@ -51,6 +51,7 @@ class PlaneFit {
     ++n_;
   }
   int count() const { return n_; }
+  Eigen::Vector3d mean() const { return sum_ / n_; }
   // The neighbours were added relative to the point judged: the point is the origin.
   // `spread`: the neighbours' RMS across the plane's narrower direction (near 0 when they
   // lie along one line, which any plane through it fits).
@@ -111,12 +112,7 @@ bool OffOtherSlices(const VoxelBox& box, const std::vector<uint32_t>& start,
     Eigen::Vector3d normal;
     first.Fit(off, rms, &normal, &spread);
     if (spread < kMinSpreadMm) return false;
-    // The first plane passes through the mean of the neighbours (relative to the point).
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    int n = 0;
-    for (const Eigen::Vector3d& q : near)
-      if (q.squaredNorm() <= reach2) mean += q, ++n;
-    mean /= n;
+    const Eigen::Vector3d mean = first.mean();  // The first plane passes through it.
     const double keep = std::max(1.0, 2.0 * *rms);
     PlaneFit second;
     for (const Eigen::Vector3d& q : near)
