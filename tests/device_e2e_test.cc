@@ -99,9 +99,9 @@ TEST_F(DeviceEndToEndTest, ScanWaitFetchAndFollowMatchTheStoredArchive) {
   // The upper and lower cameras saw the laser ring in every lit frame (the camera looking
   // up from 300 mm sees the lines only once they rise into its view, on the body from
   // about 600 mm: 23 of the 60 lit frames of this sweep once measured); the unlit ones
-  // are those whose exposure began before the lasers went on (a camera's first, or a few more when
-  // a loaded machine renders them late), never one after a lit frame. And the peaks are the scene's
-  // stripes where the slide was (every third lit frame).
+  // are those whose exposure began before the lasers went on (a camera's first, or a few
+  // more when a loaded machine renders them late), never one after a lit frame.
+  // And the peaks are the scene's stripes where the slide was (every third lit frame).
   const virtual_cabinet::Renderer renderer(
       virtual_cabinet::Scene::Load(kSource / "boards/virtual/scenes/mannequin.json"));
   std::map<int, int> lit, lit_with_peaks;
